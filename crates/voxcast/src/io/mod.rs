@@ -1,0 +1,138 @@
+//! Readers: one file per format. [`open`] picks the reader from the path
+//! (a folder, a glob, the extension) or from the file's magic bytes.
+//!
+//! Every reader checks the sizes its header claims against the real size of
+//! the file before it allocates, and reports bad input as an [`Error`] naming
+//! the file, the field and what was expected.
+
+pub mod dicom;
+pub mod image_stack;
+pub mod metaimage;
+pub mod nifti;
+pub mod nrrd;
+pub mod raw;
+pub mod util;
+pub mod vtk;
+
+use crate::error::{Error, Result};
+use crate::volume::{ScalarType, Volume};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// Layout of a headerless raw file (`--raw-dims`, `--raw-type`, …).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RawLayout {
+    pub dims: [u64; 3],
+    #[serde(rename = "type")]
+    pub scalar_type: ScalarType,
+    #[serde(default)]
+    pub big_endian: bool,
+    /// Bytes to skip at the start of the file.
+    #[serde(default)]
+    pub header_bytes: u64,
+}
+
+/// How to open an input: everything that is not in the file itself.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct OpenOptions {
+    /// Read the file as raw voxels with this layout (whatever its extension).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub raw: Option<RawLayout>,
+    /// Override the spacing the file gives (or supply one it lacks).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub spacing: Option<[f32; 3]>,
+}
+
+/// The formats voxcast reads.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    Nrrd,
+    MetaImage,
+    Vtk,
+    Nifti,
+    Dicom,
+    ImageStack,
+    Raw,
+}
+
+/// Decides the format of `path` from its kind (folder, glob), extension and
+/// first bytes.
+pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
+    if opts.raw.is_some() {
+        return Ok(Format::Raw);
+    }
+    let s = path.to_string_lossy();
+    if s.contains(['*', '?', '[']) && !path.exists() {
+        return Ok(Format::ImageStack);
+    }
+    let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
+    if meta.is_dir() {
+        return if dicom::folder_has_dicom(path)? {
+            Ok(Format::Dicom)
+        } else {
+            Ok(Format::ImageStack)
+        };
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    let by_ext = if name.ends_with(".nrrd") || name.ends_with(".nhdr") {
+        Some(Format::Nrrd)
+    } else if name.ends_with(".mhd") || name.ends_with(".mha") {
+        Some(Format::MetaImage)
+    } else if name.ends_with(".vtk") {
+        Some(Format::Vtk)
+    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+        Some(Format::Nifti)
+    } else if name.ends_with(".dcm") {
+        Some(Format::Dicom)
+    } else {
+        None
+    };
+    if let Some(f) = by_ext {
+        return Ok(f);
+    }
+    let head = util::read_head(path, 352)?;
+    if head.starts_with(b"NRRD") {
+        Ok(Format::Nrrd)
+    } else if head.starts_with(b"# vtk DataFile") {
+        Ok(Format::Vtk)
+    } else if head.len() >= 348 && (&head[344..348] == b"n+1\0" || &head[344..348] == b"ni1\0") {
+        Ok(Format::Nifti)
+    } else if head.len() >= 132 && &head[128..132] == b"DICM" {
+        Ok(Format::Dicom)
+    } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
+        Ok(Format::MetaImage)
+    } else if head.starts_with(b"\x89PNG") || head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
+        Ok(Format::ImageStack)
+    } else if name.ends_with(".raw") {
+        Err(Error::invalid(format!(
+            "{}: a raw file has no header: give its layout with --raw-dims X,Y,Z --raw-type u8|u16|i16|f32",
+            path.display()
+        )))
+    } else {
+        Err(Error::unsupported(
+            path,
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+        ))
+    }
+}
+
+/// Opens any supported input as a volume.
+pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
+    let mut vol = match detect(path, opts)? {
+        Format::Nrrd => nrrd::read(path)?,
+        Format::MetaImage => metaimage::read(path)?,
+        Format::Vtk => vtk::read(path)?,
+        Format::Nifti => nifti::read(path)?,
+        Format::Dicom => dicom::read(path)?,
+        Format::ImageStack => image_stack::read(path)?,
+        Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
+    };
+    if let Some(s) = opts.spacing {
+        vol.set_spacing(Vec3::from(s))?;
+    }
+    Ok(vol)
+}

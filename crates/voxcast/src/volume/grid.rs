@@ -1,0 +1,170 @@
+//! Typed, normalised views of a volume for the renderer's inner loop:
+//! trilinear reconstruction and central-difference gradients, monomorphised
+//! per scalar type so the per-sample path has no dispatch and no allocation.
+
+use super::{Volume, VoxelData};
+use glam::Vec3;
+
+/// A stored voxel type.
+pub trait Voxel: Copy + Send + Sync + 'static {
+    fn to_f32(self) -> f32;
+}
+impl Voxel for u8 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+}
+impl Voxel for u16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+}
+impl Voxel for i16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+}
+impl Voxel for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+}
+
+/// Something that runs on a typed grid (see [`Volume::visit`]).
+pub trait GridVisitor {
+    type Output;
+    fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Self::Output;
+}
+
+/// A borrowed grid of `T` with the affine map to normalised values
+/// (`(v − lo) / (hi − lo)`). Positions are in voxel coordinates: voxel
+/// `(i, j, k)` is at `(i, j, k)`.
+#[derive(Clone, Copy, Debug)]
+pub struct Grid<'a, T> {
+    data: &'a [T],
+    dims: [usize; 3],
+    /// Largest valid coordinate per axis (`dims − 1`).
+    max: Vec3,
+    /// Largest lower-corner index per axis (`dims − 2`, or 0 for a single slice).
+    last: [usize; 3],
+    /// Index offsets to the +1 neighbour per axis (0 on a one-voxel axis).
+    step: [usize; 3],
+    scale: f32,
+    offset: f32,
+}
+
+impl<'a, T: Voxel> Grid<'a, T> {
+    /// A view of `data` (x fastest) mapping `lo → 0`, `hi → 1`.
+    ///
+    /// # Panics
+    /// If `data.len()` differs from the product of `dims` (a programming error:
+    /// [`Volume`] guarantees it).
+    pub fn new(data: &'a [T], dims: [usize; 3], lo: f32, hi: f32) -> Self {
+        assert_eq!(data.len(), dims[0] * dims[1] * dims[2]);
+        let width = if hi > lo { hi - lo } else { 1.0 };
+        let sx = 1;
+        let sy = dims[0];
+        let sz = dims[0] * dims[1];
+        Grid {
+            data,
+            dims,
+            max: Vec3::new((dims[0] - 1) as f32, (dims[1] - 1) as f32, (dims[2] - 1) as f32),
+            last: dims.map(|d| d.saturating_sub(2)),
+            step: [
+                if dims[0] > 1 { sx } else { 0 },
+                if dims[1] > 1 { sy } else { 0 },
+                if dims[2] > 1 { sz } else { 0 },
+            ],
+            scale: 1.0 / width,
+            offset: -lo / width,
+        }
+    }
+
+    /// Grid size.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Normalised value of voxel `(i, j, k)`.
+    #[inline(always)]
+    pub fn voxel(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.data[i + self.dims[0] * (j + self.dims[1] * k)].to_f32() * self.scale + self.offset
+    }
+
+    /// Trilinearly reconstructed normalised value at `p` (voxel coordinates);
+    /// positions outside the grid are clamped to its boundary.
+    #[inline(always)]
+    pub fn sample(&self, p: Vec3) -> f32 {
+        let p = p.clamp(Vec3::ZERO, self.max);
+        // `as usize` of a NaN is 0, so a NaN position still indexes in bounds.
+        let ix = (p.x as usize).min(self.last[0]);
+        let iy = (p.y as usize).min(self.last[1]);
+        let iz = (p.z as usize).min(self.last[2]);
+        let fx = p.x - ix as f32;
+        let fy = p.y - iy as f32;
+        let fz = p.z - iz as f32;
+        let base = ix + self.dims[0] * (iy + self.dims[1] * iz);
+        let [dx, dy, dz] = self.step;
+        let d = self.data;
+        // SAFETY: ix ≤ dims[0]−1 and ix+dx ≤ dims[0]−1 (dx is 0 on a one-voxel
+        // axis), likewise for y and z, so every index is < data.len(), which
+        // `new` checked equals dims[0]·dims[1]·dims[2].
+        let (c000, c100, c010, c110, c001, c101, c011, c111) = unsafe {
+            (
+                d.get_unchecked(base).to_f32(),
+                d.get_unchecked(base + dx).to_f32(),
+                d.get_unchecked(base + dy).to_f32(),
+                d.get_unchecked(base + dx + dy).to_f32(),
+                d.get_unchecked(base + dz).to_f32(),
+                d.get_unchecked(base + dx + dz).to_f32(),
+                d.get_unchecked(base + dy + dz).to_f32(),
+                d.get_unchecked(base + dx + dy + dz).to_f32(),
+            )
+        };
+        // Seven lerps (S0 eqs. 7–9).
+        let c00 = c000 + (c100 - c000) * fx;
+        let c10 = c010 + (c110 - c010) * fx;
+        let c01 = c001 + (c101 - c001) * fx;
+        let c11 = c011 + (c111 - c011) * fx;
+        let c0 = c00 + (c10 - c00) * fy;
+        let c1 = c01 + (c11 - c01) * fy;
+        (c0 + (c1 - c0) * fz) * self.scale + self.offset
+    }
+
+    /// Central-difference gradient of the normalised field at `p`, per voxel
+    /// (six trilinear samples one voxel apart).
+    #[inline(always)]
+    pub fn gradient(&self, p: Vec3) -> Vec3 {
+        let gx = self.sample(p + Vec3::X) - self.sample(p - Vec3::X);
+        let gy = self.sample(p + Vec3::Y) - self.sample(p - Vec3::Y);
+        let gz = self.sample(p + Vec3::Z) - self.sample(p - Vec3::Z);
+        Vec3::new(gx, gy, gz) * 0.5
+    }
+}
+
+pub(super) fn visit<V: GridVisitor>(vol: &Volume, lo: f32, hi: f32, visitor: V) -> V::Output {
+    let dims = vol.dims();
+    match vol.data() {
+        VoxelData::U8(d) => visitor.visit(&Grid::new(d, dims, lo, hi)),
+        VoxelData::U16(d) => visitor.visit(&Grid::new(d, dims, lo, hi)),
+        VoxelData::I16(d) => visitor.visit(&Grid::new(d, dims, lo, hi)),
+        VoxelData::F32(d) => {
+            if vol.stats().non_finite() == 0 {
+                visitor.visit(&Grid::new(d, dims, lo, hi))
+            } else {
+                // NaN/Inf are rendered as empty: replace them by a value that
+                // normalises to −1, below every transfer function's domain.
+                let empty = lo - (if hi > lo { hi - lo } else { 1.0 });
+                let clean: Vec<f32> = d
+                    .iter()
+                    .map(|&v| if v.is_finite() { v } else { empty })
+                    .collect();
+                visitor.visit(&Grid::new(&clean, dims, lo, hi))
+            }
+        }
+    }
+}

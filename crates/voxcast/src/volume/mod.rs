@@ -1,0 +1,341 @@
+//! The volume: a regular grid of scalars with dims, spacing and origin, x
+//! varying fastest. Readers and generators produce it; nothing downstream
+//! needs to know where it came from.
+
+mod grid;
+mod stats;
+
+pub use grid::{Grid, GridVisitor, Voxel};
+pub use stats::{Histogram, ValueStats};
+
+use crate::error::{Error, Result};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Scalar types a volume may hold.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScalarType {
+    U8,
+    U16,
+    I16,
+    F32,
+}
+
+impl ScalarType {
+    /// Bytes per voxel.
+    pub fn size(self) -> usize {
+        match self {
+            ScalarType::U8 => 1,
+            ScalarType::U16 | ScalarType::I16 => 2,
+            ScalarType::F32 => 4,
+        }
+    }
+
+    /// The name used on the command line and in scene files (`u8`, `u16`, `i16`, `f32`).
+    pub fn name(self) -> &'static str {
+        match self {
+            ScalarType::U8 => "u8",
+            ScalarType::U16 => "u16",
+            ScalarType::I16 => "i16",
+            ScalarType::F32 => "f32",
+        }
+    }
+
+    /// Parses `u8`, `u16`, `i16`, `f32` (and a few common synonyms).
+    pub fn parse(s: &str) -> Option<ScalarType> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "u8" | "uint8" | "uchar" | "unsigned char" | "uint8_t" => Some(ScalarType::U8),
+            "u16" | "uint16" | "ushort" | "unsigned short" | "uint16_t" => Some(ScalarType::U16),
+            "i16" | "int16" | "short" | "signed short" | "int16_t" => Some(ScalarType::I16),
+            "f32" | "float" | "float32" => Some(ScalarType::F32),
+            _ => None,
+        }
+    }
+}
+
+impl std::fmt::Display for ScalarType {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The voxel values, in their stored type, x fastest, then y, then z.
+#[derive(Clone, Debug, PartialEq)]
+pub enum VoxelData {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    I16(Vec<i16>),
+    F32(Vec<f32>),
+}
+
+impl VoxelData {
+    /// Number of voxels.
+    pub fn len(&self) -> usize {
+        match self {
+            VoxelData::U8(v) => v.len(),
+            VoxelData::U16(v) => v.len(),
+            VoxelData::I16(v) => v.len(),
+            VoxelData::F32(v) => v.len(),
+        }
+    }
+
+    /// True when there are no voxels.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The stored type.
+    pub fn scalar_type(&self) -> ScalarType {
+        match self {
+            VoxelData::U8(_) => ScalarType::U8,
+            VoxelData::U16(_) => ScalarType::U16,
+            VoxelData::I16(_) => ScalarType::I16,
+            VoxelData::F32(_) => ScalarType::F32,
+        }
+    }
+
+    /// Value of voxel `index` as f32.
+    pub fn get(&self, index: usize) -> f32 {
+        match self {
+            VoxelData::U8(v) => v[index] as f32,
+            VoxelData::U16(v) => v[index] as f32,
+            VoxelData::I16(v) => v[index] as f32,
+            VoxelData::F32(v) => v[index],
+        }
+    }
+
+    /// Decodes `bytes` (exactly `n × size` of them) of type `ty` with the
+    /// given endianness.
+    pub fn from_bytes(ty: ScalarType, bytes: &[u8], big_endian: bool) -> VoxelData {
+        macro_rules! conv {
+            ($t:ty, $n:expr, $var:ident) => {{
+                let v: Vec<$t> = bytes
+                    .chunks_exact($n)
+                    .map(|c| {
+                        let a: [u8; $n] = c.try_into().unwrap();
+                        if big_endian {
+                            <$t>::from_be_bytes(a)
+                        } else {
+                            <$t>::from_le_bytes(a)
+                        }
+                    })
+                    .collect();
+                VoxelData::$var(v)
+            }};
+        }
+        match ty {
+            ScalarType::U8 => VoxelData::U8(bytes.to_vec()),
+            ScalarType::U16 => conv!(u16, 2, U16),
+            ScalarType::I16 => conv!(i16, 2, I16),
+            ScalarType::F32 => conv!(f32, 4, F32),
+        }
+    }
+
+    /// Applies `v·slope + intercept` and returns the result in the smallest
+    /// type that holds it exactly (i16 for CT Hounsfield units, else f32).
+    /// Identity scaling returns the data unchanged.
+    pub fn rescaled(self, slope: f64, intercept: f64) -> VoxelData {
+        if slope == 1.0 && intercept == 0.0 {
+            return self;
+        }
+        let integral = slope.fract() == 0.0 && intercept.fract() == 0.0;
+        if integral && !matches!(self, VoxelData::F32(_)) {
+            let n = self.len();
+            let mut lo = f64::INFINITY;
+            let mut hi = f64::NEG_INFINITY;
+            for i in 0..n {
+                let v = self.get(i) as f64 * slope + intercept;
+                lo = lo.min(v);
+                hi = hi.max(v);
+            }
+            if n > 0 && lo >= i16::MIN as f64 && hi <= i16::MAX as f64 {
+                let out = (0..n)
+                    .map(|i| (self.get(i) as f64 * slope + intercept) as i16)
+                    .collect();
+                return VoxelData::I16(out);
+            }
+        }
+        let out = (0..self.len())
+            .map(|i| (self.get(i) as f64 * slope + intercept) as f32)
+            .collect();
+        VoxelData::F32(out)
+    }
+}
+
+/// A regular 3D grid of scalars.
+///
+/// Voxel `(i, j, k)` sits at world position `origin + (i, j, k) ⊙ spacing`;
+/// `i` (x) varies fastest in memory. The volume's box spans voxel centres
+/// `0 ..= dims − 1` on each axis.
+#[derive(Clone, Debug)]
+pub struct Volume {
+    dims: [usize; 3],
+    spacing: Vec3,
+    origin: Vec3,
+    data: VoxelData,
+    stats: ValueStats,
+    /// Physical unit of the values when known (`"HU"` for CT after rescale).
+    pub units: Option<String>,
+    /// Name of the variable or field shown (e.g. `density`, `QCLOUD`).
+    pub name: Option<String>,
+    /// For multi-variable files: every variable the file holds.
+    pub variables: Vec<String>,
+}
+
+/// The most voxels a volume may have (2³⁴ ≈ 17 billion): beyond any file a
+/// desktop renders, and far below where `usize` arithmetic overflows.
+pub const MAX_VOXELS: u64 = 1 << 34;
+
+/// Checks dims for a volume: each ≥ 1, product ≤ [`MAX_VOXELS`]. Returns the
+/// voxel count. `what` names the source in the error (a file or field).
+pub fn checked_voxel_count(dims: [u64; 3]) -> std::result::Result<usize, String> {
+    if dims.contains(&0) {
+        return Err(format!(
+            "dims {}×{}×{}: every dimension must be at least 1",
+            dims[0], dims[1], dims[2]
+        ));
+    }
+    let n = dims[0]
+        .checked_mul(dims[1])
+        .and_then(|n| n.checked_mul(dims[2]))
+        .filter(|&n| n <= MAX_VOXELS)
+        .ok_or_else(|| {
+            format!(
+                "dims {}×{}×{}: more than {} voxels",
+                dims[0], dims[1], dims[2], MAX_VOXELS
+            )
+        })?;
+    usize::try_from(n).map_err(|_| "voxel count does not fit in memory addresses".to_string())
+}
+
+impl Volume {
+    /// Makes a volume. Spacing must be positive and finite; `data` must hold
+    /// exactly `dims[0]·dims[1]·dims[2]` voxels.
+    pub fn new(dims: [usize; 3], spacing: Vec3, origin: Vec3, data: VoxelData) -> Result<Volume> {
+        let n = checked_voxel_count(dims.map(|d| d as u64)).map_err(Error::invalid)?;
+        if n != data.len() {
+            return Err(Error::invalid(format!(
+                "dims {}×{}×{} need {} voxels, the data holds {}",
+                dims[0],
+                dims[1],
+                dims[2],
+                n,
+                data.len()
+            )));
+        }
+        if !(spacing.is_finite() && spacing.min_element() > 0.0) {
+            return Err(Error::invalid(format!(
+                "spacing {} {} {}: each must be a positive finite number",
+                spacing.x, spacing.y, spacing.z
+            )));
+        }
+        if !origin.is_finite() {
+            return Err(Error::invalid("origin must be finite"));
+        }
+        let stats = ValueStats::compute(&data);
+        Ok(Volume {
+            dims,
+            spacing,
+            origin,
+            data,
+            stats,
+            units: None,
+            name: None,
+            variables: Vec::new(),
+        })
+    }
+
+    /// Makes an f32 volume from a function of the voxel index (for built-in
+    /// scenes and tests).
+    pub fn from_fn(dims: [usize; 3], spacing: Vec3, f: impl Fn(usize, usize, usize) -> f32) -> Result<Volume> {
+        checked_voxel_count(dims.map(|d| d as u64)).map_err(Error::invalid)?;
+        let mut v = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    v.push(f(i, j, k));
+                }
+            }
+        }
+        Volume::new(dims, spacing, Vec3::ZERO, VoxelData::F32(v))
+    }
+
+    /// Grid size (x, y, z).
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+    /// Distance between voxel centres along x, y, z (world units, often mm).
+    pub fn spacing(&self) -> Vec3 {
+        self.spacing
+    }
+    /// World position of voxel (0, 0, 0).
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+    /// Overrides the spacing (e.g. from `--spacing`).
+    pub fn set_spacing(&mut self, spacing: Vec3) -> Result<()> {
+        if !(spacing.is_finite() && spacing.min_element() > 0.0) {
+            return Err(Error::invalid(format!(
+                "spacing {} {} {}: each must be a positive finite number",
+                spacing.x, spacing.y, spacing.z
+            )));
+        }
+        self.spacing = spacing;
+        Ok(())
+    }
+    /// Overrides the origin.
+    pub fn set_origin(&mut self, origin: Vec3) {
+        self.origin = origin;
+    }
+    /// The voxel values.
+    pub fn data(&self) -> &VoxelData {
+        &self.data
+    }
+    /// The stored scalar type.
+    pub fn scalar_type(&self) -> ScalarType {
+        self.data.scalar_type()
+    }
+    /// Number of voxels.
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+    /// True for a volume with no voxels (never, by construction).
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+    /// Range, non-finite count and mean of the values (computed once).
+    pub fn stats(&self) -> &ValueStats {
+        &self.stats
+    }
+    /// Linear index of voxel (i, j, k).
+    #[inline]
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+    /// Value of voxel (i, j, k) in data units.
+    pub fn value(&self, i: usize, j: usize, k: usize) -> f32 {
+        self.data.get(self.index(i, j, k))
+    }
+    /// World-space extent of the box through the voxel centres:
+    /// `(origin, origin + (dims − 1) ⊙ spacing)`.
+    pub fn world_bounds(&self) -> (Vec3, Vec3) {
+        let ext = Vec3::new(
+            (self.dims[0].max(1) - 1) as f32,
+            (self.dims[1].max(1) - 1) as f32,
+            (self.dims[2].max(1) - 1) as f32,
+        ) * self.spacing;
+        (self.origin, self.origin + ext)
+    }
+    /// A histogram of the finite values over `bins` equal bins of the range.
+    pub fn histogram(&self, bins: usize) -> Histogram {
+        Histogram::compute(&self.data, self.stats.min, self.stats.max, bins)
+    }
+
+    /// Calls `visitor` with a typed, normalised view of the grid: data value
+    /// `lo` maps to 0 and `hi` to 1. Non-finite values map below 0 (empty).
+    /// This is where the renderer's loop is monomorphised per scalar type.
+    pub fn visit<V: GridVisitor>(&self, lo: f32, hi: f32, visitor: V) -> V::Output {
+        grid::visit(self, lo, hi, visitor)
+    }
+}
