@@ -1,1 +1,250 @@
-fn main(){}
+//! The `voxcast` command: parses arguments and wires the library together.
+//! No rendering logic lives here.
+
+mod args;
+
+use anyhow::{bail, Context, Result};
+use args::{Cli, Command, CompareArgs, InfoArgs, RenderArgs};
+use clap::Parser;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use voxcast::scene::{Scene, BUILTIN_PREFIX};
+use voxcast::{metrics, Image};
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(a) => render(a),
+        Command::Info(a) => info(a),
+        Command::Compare(a) => compare(a),
+        Command::Presets => {
+            presets();
+            Ok(())
+        }
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn render(a: RenderArgs) -> Result<()> {
+    let mut scene = match &a.scene {
+        Some(p) => Scene::load(p)?,
+        None => Scene::default(),
+    };
+    a.apply(&mut scene)?;
+    let out = a.output.clone().unwrap_or_else(|| PathBuf::from("render.png"));
+    check_output(&out, &scene.input.path, &["png", "exr"])?;
+    if let Some(f) = &a.float_out {
+        check_output(f, &scene.input.path, &["exr"])?;
+    }
+    let quiet = a.quiet;
+    let t_load = Instant::now();
+    let prepared = scene.prepare()?;
+    let v = &prepared.volume;
+    if !quiet {
+        let d = v.dims();
+        eprintln!(
+            "loaded {} — {}×{}×{} {} in {:.2} s; window [{}, {}]",
+            scene.input.path,
+            d[0],
+            d[1],
+            d[2],
+            v.scalar_type(),
+            t_load.elapsed().as_secs_f64(),
+            prepared.window[0],
+            prepared.window[1]
+        );
+    }
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("rendering {bar:40.cyan/blue} {percent:>3}% {elapsed}<{eta}")
+            .expect("valid template"),
+    );
+    let shown = AtomicBool::new(false);
+    let start = Instant::now();
+    let tty = std::io::stderr().is_terminal() && !quiet;
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        // Only renders longer than about a second get a bar.
+        if tty && start.elapsed() > Duration::from_secs(1) && !shown.swap(true, Ordering::Relaxed) {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+    };
+    let (image, stats) = scene.render(&prepared, &progress)?;
+    bar.finish_and_clear();
+    image.write(&out)?;
+    if let Some(f) = &a.float_out {
+        image.write_exr(f)?;
+    }
+    if let Some(f) = &a.stats_json {
+        let json = serde_json::to_string_pretty(&stats)?;
+        voxcast::image::atomic_write(f, |w| {
+            use std::io::Write;
+            writeln!(w, "{json}")
+        })?;
+    }
+    if let Some(f) = &a.save_scene {
+        scene.resolved(&prepared).save(f)?;
+    }
+    if !quiet {
+        eprintln!(
+            "wrote {} ({}×{}) in {:.3} s: {} rays, {} samples ({:.1} M/s), {} early-terminated",
+            out.display(),
+            image.width,
+            image.height,
+            stats.seconds,
+            stats.rays,
+            stats.samples,
+            stats.samples_per_second() / 1e6,
+            stats.early_terminated
+        );
+    }
+    Ok(())
+}
+
+/// Refuses to write over an input file or with an unknown extension.
+fn check_output(out: &Path, input: &str, exts: &[&str]) -> Result<()> {
+    let ext = out
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    if !exts.contains(&ext.as_str()) {
+        bail!(
+            "{}: output must end in {}",
+            out.display(),
+            exts.iter().map(|e| format!(".{e}")).collect::<Vec<_>>().join(" or ")
+        );
+    }
+    if !input.starts_with(BUILTIN_PREFIX) {
+        if let (Ok(a), Ok(b)) = (out.canonicalize(), Path::new(input).canonicalize()) {
+            if a == b {
+                bail!("{}: refusing to overwrite the input file", out.display());
+            }
+        }
+    }
+    if out.is_dir() {
+        bail!("{}: is a folder; give an image file name", out.display());
+    }
+    Ok(())
+}
+
+fn info(a: InfoArgs) -> Result<()> {
+    let mut scene = Scene::default();
+    scene.input.path = a.input.clone();
+    scene.input.options = a.open.options()?;
+    let vol = scene.load_volume()?;
+    let s = *vol.stats();
+    let hist = vol.histogram(256);
+    let pct = [0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99].map(|q| (q, hist.quantile(q)));
+    let d = vol.dims();
+    let (lo, hi) = vol.world_bounds();
+    if a.json {
+        let coarse = vol.histogram(64);
+        let j = serde_json::json!({
+            "path": a.input,
+            "name": vol.name,
+            "dims": d,
+            "scalar_type": vol.scalar_type().name(),
+            "spacing": vol.spacing().to_array(),
+            "origin": vol.origin().to_array(),
+            "extent": [lo.to_array(), hi.to_array()],
+            "units": vol.units,
+            "min": s.min,
+            "max": s.max,
+            "mean": s.mean,
+            "nan": s.nan,
+            "inf": s.inf,
+            "percentiles": pct.iter().map(|(q, v)| serde_json::json!({"q": q, "value": v})).collect::<Vec<_>>(),
+            "histogram": {"lo": coarse.lo, "hi": coarse.hi, "counts": coarse.counts},
+            "variables": vol.variables,
+        });
+        println!("{}", serde_json::to_string_pretty(&j)?);
+        return Ok(());
+    }
+    println!("{}", a.input);
+    if let Some(n) = &vol.name {
+        println!("  name        {n}");
+    }
+    println!(
+        "  dims        {} × {} × {}  ({} voxels, {:.1} MB)",
+        d[0],
+        d[1],
+        d[2],
+        vol.len(),
+        (vol.len() * vol.scalar_type().size()) as f64 / 1e6
+    );
+    println!("  type        {}", vol.scalar_type());
+    let sp = vol.spacing();
+    let o = vol.origin();
+    println!("  spacing     {} {} {}", sp.x, sp.y, sp.z);
+    println!("  origin      {} {} {}", o.x, o.y, o.z);
+    println!(
+        "  extent      {:.4} … {:.4}, {:.4} … {:.4}, {:.4} … {:.4}",
+        lo.x, hi.x, lo.y, hi.y, lo.z, hi.z
+    );
+    let units = vol.units.as_deref().map(|u| format!(" {u}")).unwrap_or_default();
+    println!("  range       {} … {}{units}  (mean {:.4})", s.min, s.max, s.mean);
+    println!("  NaN / Inf   {} / {}", s.nan, s.inf);
+    let p: Vec<String> = pct.iter().map(|(q, v)| format!("p{}={}", (q * 100.0) as u32, v)).collect();
+    println!("  percentiles {}", p.join("  "));
+    println!("  histogram   {}  (64 bins, log counts)", sparkline(&vol.histogram(64).counts));
+    if !vol.variables.is_empty() {
+        println!("  variables   {}", vol.variables.join(", "));
+    }
+    Ok(())
+}
+
+/// A one-line histogram of log counts.
+fn sparkline(counts: &[u64]) -> String {
+    const BARS: [char; 8] = ['▁', '▂', '▃', '▄', '▅', '▆', '▇', '█'];
+    let max = counts.iter().copied().max().unwrap_or(0) as f64;
+    counts
+        .iter()
+        .map(|&c| {
+            if c == 0 {
+                ' '
+            } else {
+                let f = (c as f64).ln_1p() / max.ln_1p().max(1e-9);
+                BARS[((f * 7.0).round() as usize).min(7)]
+            }
+        })
+        .collect()
+}
+
+fn compare(a: CompareArgs) -> Result<()> {
+    let x = Image::read(&a.a).with_context(|| format!("reading {}", a.a.display()))?;
+    let y = Image::read(&a.b).with_context(|| format!("reading {}", a.b.display()))?;
+    let psnr = metrics::psnr(&x, &y)?;
+    let ssim = metrics::ssim(&x, &y)?;
+    if a.json {
+        let j = serde_json::json!({
+            "psnr_db": if psnr.is_finite() { Some(psnr) } else { None },
+            "ssim": ssim,
+            "identical": psnr.is_infinite(),
+        });
+        println!("{}", serde_json::to_string_pretty(&j)?);
+    } else if psnr.is_infinite() {
+        println!("PSNR inf dB (identical)  SSIM {ssim:.6}");
+    } else {
+        println!("PSNR {psnr:.3} dB  SSIM {ssim:.6}");
+    }
+    Ok(())
+}
+
+fn presets() {
+    println!("Transfer-function presets (--tf NAME):");
+    println!("  {:<16} chosen from the data's histogram (the default)", "auto");
+    for (n, d) in voxcast::transfer::PRESETS {
+        println!("  {n:<16} {d}");
+    }
+    println!("\nBuilt-in volumes (INPUT = builtin:NAME):");
+    for (n, d) in voxcast::builtin::BUILTINS {
+        println!("  {n:<16} {d}");
+    }
+}

@@ -1,16 +1,27 @@
 //! voxcast — volume rendering by ray casting.
 //!
 //! The data flows one way: a file or generator gives a [`Volume`]
-//! ([`io`], [`builtin`]); a [`Scene`](scene::Scene) adds the transfer
-//! function, camera and method; a renderer ([`render`]) turns it into an
-//! [`Image`](image::Image) and [`RenderStats`](render::RenderStats); images are
+//! ([`io`], [`builtin`]); a [`Scene`] adds the transfer function
+//! ([`transfer`]), the camera ([`camera`]) and the method; the renderer
+//! ([`render`]) turns it into an [`Image`] and [`RenderStats`]; images are
 //! written as PNG/EXR and compared with [`metrics`].
 
+pub mod builtin;
+pub mod camera;
 pub mod error;
+pub mod image;
 pub mod io;
+pub mod metrics;
+pub mod render;
+pub mod scene;
+pub mod transfer;
 pub mod volume;
 
-pub use error::{Error, Result};
-pub use volume::{ScalarType, Volume, VoxelData};
 #[doc(hidden)]
 pub mod testdata;
+
+pub use error::{Error, Result};
+pub use image::Image;
+pub use render::RenderStats;
+pub use scene::Scene;
+pub use volume::{ScalarType, Volume, VoxelData};

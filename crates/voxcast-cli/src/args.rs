@@ -1,0 +1,357 @@
+//! Command-line arguments.
+
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use voxcast::camera::Projection;
+use voxcast::io::{OpenOptions, RawLayout};
+use voxcast::render::{Method, OpticalModel, Order};
+use voxcast::scene::Scene;
+use voxcast::ScalarType;
+
+const ABOUT: &str = "Volume rendering by ray casting: CT/MRI scans, smoke, clouds.";
+
+const LONG_ABOUT: &str = "\
+Volume rendering by ray casting: CT/MRI scans, smoke, clouds.
+
+Start with `voxcast render` (renders the built-in demo to render.png), then
+`voxcast render YOUR_VOLUME -o out.png`. Inputs: NRRD (.nrrd/.nhdr), MetaImage
+(.mhd/.mha), legacy VTK (.vtk), NIfTI (.nii/.nii.gz), DICOM folders, folders or
+globs of PNG/TIFF slices, raw files with --raw-dims, and builtin:NAME.";
+
+#[derive(Parser)]
+#[command(name = "voxcast", version, about = ABOUT, long_about = LONG_ABOUT)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Render a volume (or the built-in demo) to a PNG/EXR image.
+    #[command(after_long_help = RENDER_HELP)]
+    Render(RenderArgs),
+    /// Print a volume's dims, type, spacing, value range and histogram.
+    Info(InfoArgs),
+    /// Compare two images: PSNR (dB) and SSIM.
+    Compare(CompareArgs),
+    /// List transfer-function presets and built-in volumes.
+    Presets,
+}
+
+const RENDER_HELP: &str = "\
+Examples:
+  voxcast render                                   # the built-in demo → render.png
+  voxcast render ../shared/data/teapot_ct/slices -o teapot.png --azimuth 30 --elevation 20
+  voxcast render ct_folder/ --tf ct-bone -o bone.png
+  voxcast render vol.raw --raw-dims 256,256,128 --raw-type u16 --spacing 0.5,0.5,1
+  voxcast render --scene saved.toml -o again.png   # reproduce a saved render
+
+Axes: at azimuth 0, elevation 0 the camera looks along +y with +x to the right
+and +z up; positive azimuth orbits counter-clockwise seen from +z.";
+
+/// Options to open an input (shared by render and info).
+#[derive(Args, Clone, Default)]
+pub struct OpenArgs {
+    /// Read INPUT as raw voxels with these dims (X,Y,Z; x fastest).
+    #[arg(long, value_name = "X,Y,Z", help_heading = "Input")]
+    pub raw_dims: Option<String>,
+    /// Raw voxel type: u8, u16, i16 or f32.
+    #[arg(long, value_name = "TYPE", help_heading = "Input")]
+    pub raw_type: Option<String>,
+    /// Raw byte order: little or big.
+    #[arg(long, value_name = "ENDIAN", default_value = "little", help_heading = "Input")]
+    pub raw_endian: String,
+    /// Bytes to skip at the start of a raw file.
+    #[arg(long, value_name = "N", default_value_t = 0, help_heading = "Input")]
+    pub raw_header_bytes: u64,
+    /// Voxel spacing X,Y,Z (overrides the file's).
+    #[arg(long, value_name = "X,Y,Z", help_heading = "Input")]
+    pub spacing: Option<String>,
+}
+
+impl OpenArgs {
+    pub fn options(&self) -> Result<OpenOptions> {
+        let raw = match (&self.raw_dims, &self.raw_type) {
+            (None, None) => None,
+            (Some(d), Some(t)) => {
+                let dims: [u64; 3] = triple(d, "--raw-dims")?;
+                let scalar_type = ScalarType::parse(t)
+                    .with_context(|| format!("--raw-type {t}: expected u8, u16, i16 or f32"))?;
+                let big_endian = match self.raw_endian.as_str() {
+                    "little" | "le" => false,
+                    "big" | "be" => true,
+                    e => bail!("--raw-endian {e}: expected little or big"),
+                };
+                Some(RawLayout { dims, scalar_type, big_endian, header_bytes: self.raw_header_bytes })
+            }
+            (Some(_), None) => bail!("--raw-dims needs --raw-type (u8, u16, i16 or f32)"),
+            (None, Some(_)) => bail!("--raw-type needs --raw-dims X,Y,Z"),
+        };
+        let spacing = match &self.spacing {
+            Some(s) => {
+                let v: [f32; 3] = triple(s, "--spacing")?;
+                if v.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                    bail!("--spacing {s}: each value must be a positive number");
+                }
+                Some(v)
+            }
+            None => None,
+        };
+        Ok(OpenOptions { raw, spacing })
+    }
+}
+
+/// Parses `a,b,c`.
+fn triple<T: std::str::FromStr + Copy>(s: &str, flag: &str) -> Result<[T; 3]> {
+    let v: Vec<T> = s
+        .split(',')
+        .map(|p| p.trim().parse::<T>())
+        .collect::<std::result::Result<_, _>>()
+        .map_err(|_| anyhow::anyhow!("{flag} {s}: expected three numbers separated by commas"))?;
+    if v.len() != 3 {
+        bail!("{flag} {s}: expected three numbers separated by commas");
+    }
+    Ok([v[0], v[1], v[2]])
+}
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Volume to render: a file, folder, glob, or builtin:NAME (default: builtin:demo).
+    pub input: Option<String>,
+    /// Output image (.png, or .exr for linear float).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Start from a scene file (flags given here override it).
+    #[arg(long, value_name = "FILE")]
+    pub scene: Option<PathBuf>,
+    /// Write the scene this command implies, to reproduce the image later.
+    #[arg(long, value_name = "FILE")]
+    pub save_scene: Option<PathBuf>,
+    /// Also write the linear float image as OpenEXR.
+    #[arg(long, value_name = "FILE.exr")]
+    pub float_out: Option<PathBuf>,
+    /// Write the render statistics as JSON (rays, samples, interpolations, seconds, …).
+    #[arg(long, value_name = "FILE")]
+    pub stats_json: Option<PathBuf>,
+    /// No messages on stderr.
+    #[arg(short, long)]
+    pub quiet: bool,
+
+    #[command(flatten)]
+    pub open: OpenArgs,
+
+    /// Transfer function: a preset (see `voxcast presets`), auto, or a TOML file.
+    #[arg(long, value_name = "NAME|FILE", help_heading = "Transfer function")]
+    pub tf: Option<String>,
+    /// Data values mapped to the ends of the transfer function (e.g. -1000,2000 HU).
+    #[arg(long, value_name = "LO,HI", allow_hyphen_values = true, help_heading = "Transfer function")]
+    pub window: Option<String>,
+
+    /// Image size.
+    #[arg(long, value_name = "WxH", help_heading = "Camera")]
+    pub size: Option<String>,
+    /// Orbit angle about +z in degrees.
+    #[arg(long, allow_hyphen_values = true, help_heading = "Camera")]
+    pub azimuth: Option<f32>,
+    /// Angle above the xy plane in degrees.
+    #[arg(long, allow_hyphen_values = true, help_heading = "Camera")]
+    pub elevation: Option<f32>,
+    /// Magnification relative to the automatic framing.
+    #[arg(long, help_heading = "Camera")]
+    pub zoom: Option<f32>,
+    /// Vertical field of view in degrees (perspective).
+    #[arg(long, help_heading = "Camera")]
+    pub fov: Option<f32>,
+    /// Orthographic projection instead of perspective.
+    #[arg(long, help_heading = "Camera")]
+    pub ortho: bool,
+
+    /// Sampling method along rays.
+    #[arg(long, value_enum, help_heading = "Ray casting")]
+    pub method: Option<MethodArg>,
+    /// Step length in voxels (default 0.5).
+    #[arg(long, help_heading = "Ray casting")]
+    pub step: Option<f32>,
+    /// Early ray termination threshold (default 0.99; 1 disables).
+    #[arg(long, help_heading = "Ray casting")]
+    pub ert: Option<f32>,
+    /// Compositing order.
+    #[arg(long, value_enum, help_heading = "Ray casting")]
+    pub order: Option<OrderArg>,
+    /// Optical model.
+    #[arg(long, value_enum, help_heading = "Ray casting")]
+    pub optical: Option<OpticalArg>,
+    /// Gradient (Blinn–Phong) shading: on or off (default on).
+    #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
+    pub shading: Option<String>,
+    /// Background: black, white, R,G,B (0…1) or #rrggbb.
+    #[arg(long, value_name = "COLOR", help_heading = "Ray casting")]
+    pub background: Option<String>,
+    /// Random seed (stochastic methods).
+    #[arg(long, help_heading = "Ray casting")]
+    pub seed: Option<u64>,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+pub enum MethodArg {
+    Uniform,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+pub enum OrderArg {
+    FrontToBack,
+    BackToFront,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
+pub enum OpticalArg {
+    AbsorptionOnly,
+    EmissionOnly,
+    EmissionAbsorption,
+}
+
+impl RenderArgs {
+    /// Applies the flags given on the command line to `scene`.
+    pub fn apply(&self, scene: &mut Scene) -> Result<()> {
+        if let Some(i) = &self.input {
+            scene.input.path = i.clone();
+        }
+        let o = self.open.options()?;
+        if o.raw.is_some() {
+            scene.input.options.raw = o.raw;
+        }
+        if o.spacing.is_some() {
+            scene.input.options.spacing = o.spacing;
+        }
+        if let Some(tf) = &self.tf {
+            scene.transfer.tf = tf.clone();
+            scene.transfer.map = None;
+        }
+        if let Some(w) = &self.window {
+            let v: Vec<f32> = w
+                .split(',')
+                .map(|p| p.trim().parse())
+                .collect::<std::result::Result<_, _>>()
+                .map_err(|_| anyhow::anyhow!("--window {w}: expected LO,HI"))?;
+            if v.len() != 2 || !(v[0] < v[1]) {
+                bail!("--window {w}: expected LO,HI with LO < HI");
+            }
+            scene.transfer.window = Some([v[0], v[1]]);
+        }
+        let (c, r) = (&mut scene.camera, &mut scene.render);
+        if let Some(s) = &self.size {
+            let (w, h) = s
+                .split_once(['x', 'X'])
+                .and_then(|(w, h)| Some((w.trim().parse().ok()?, h.trim().parse().ok()?)))
+                .with_context(|| format!("--size {s}: expected WIDTHxHEIGHT, e.g. 512x512"))?;
+            r.width = w;
+            r.height = h;
+        }
+        if let Some(v) = self.azimuth {
+            c.azimuth = v;
+        }
+        if let Some(v) = self.elevation {
+            c.elevation = v;
+        }
+        if let Some(v) = self.zoom {
+            if !(v > 0.0) {
+                bail!("--zoom {v}: must be positive");
+            }
+            c.zoom = v;
+        }
+        if let Some(v) = self.fov {
+            if !(1.0..=170.0).contains(&v) {
+                bail!("--fov {v}: must be between 1 and 170 degrees");
+            }
+            c.fov = v;
+        }
+        if self.ortho {
+            c.projection = Projection::Orthographic;
+        }
+        if let Some(m) = self.method {
+            r.method = match m {
+                MethodArg::Uniform => Method::Uniform,
+            };
+        }
+        if let Some(v) = self.step {
+            r.step = v;
+        }
+        if let Some(v) = self.ert {
+            r.ert = v;
+        }
+        if let Some(v) = self.order {
+            r.order = match v {
+                OrderArg::FrontToBack => Order::FrontToBack,
+                OrderArg::BackToFront => Order::BackToFront,
+            };
+        }
+        if let Some(v) = self.optical {
+            r.optical = match v {
+                OpticalArg::AbsorptionOnly => OpticalModel::AbsorptionOnly,
+                OpticalArg::EmissionOnly => OpticalModel::EmissionOnly,
+                OpticalArg::EmissionAbsorption => OpticalModel::EmissionAbsorption,
+            };
+        }
+        if let Some(s) = &self.shading {
+            r.shading = match s.as_str() {
+                "on" | "true" | "yes" => true,
+                "off" | "false" | "no" => false,
+                _ => bail!("--shading {s}: expected on or off"),
+            };
+        }
+        if let Some(b) = &self.background {
+            r.background = parse_color(b)?;
+        }
+        if let Some(s) = self.seed {
+            r.seed = s;
+        }
+        r.validate()?;
+        Ok(())
+    }
+}
+
+/// `black`, `white`, `R,G,B` in 0…1, or `#rrggbb`.
+fn parse_color(s: &str) -> Result<[f32; 3]> {
+    match s {
+        "black" => return Ok([0.0; 3]),
+        "white" => return Ok([1.0; 3]),
+        "gray" | "grey" => return Ok([0.5; 3]),
+        _ => {}
+    }
+    if let Some(hex) = s.strip_prefix('#') {
+        if hex.len() == 6 {
+            if let Ok(v) = u32::from_str_radix(hex, 16) {
+                return Ok([(v >> 16) & 255, (v >> 8) & 255, v & 255].map(|c| c as f32 / 255.0));
+            }
+        }
+        bail!("--background {s}: expected #rrggbb");
+    }
+    let v: [f32; 3] = triple(s, "--background")?;
+    if v.iter().any(|c| !(0.0..=1.0).contains(c)) {
+        bail!("--background {s}: components must be in 0…1");
+    }
+    Ok(v)
+}
+
+#[derive(Args)]
+pub struct InfoArgs {
+    /// Volume: a file, folder, glob, or builtin:NAME.
+    pub input: String,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub open: OpenArgs,
+}
+
+#[derive(Args)]
+pub struct CompareArgs {
+    /// First image (PNG or EXR).
+    pub a: PathBuf,
+    /// Second image (PNG or EXR).
+    pub b: PathBuf,
+    /// Print JSON (`psnr_db`, `ssim`).
+    #[arg(long)]
+    pub json: bool,
+}

@@ -1,0 +1,203 @@
+//! The camera: perspective or orthographic, orbiting the volume's centre.
+//!
+//! Axis convention (world = the volume's physical coordinates, right-handed):
+//! at azimuth 0 and elevation 0 the camera looks along **+y**, with **+x to
+//! the right** of the image and **+z up**. Positive azimuth orbits the camera
+//! counter-clockwise seen from +z (from −y towards +x), so the volume appears
+//! to turn clockwise; positive elevation raises the camera towards +z and
+//! looks down. Image row 0 is the top.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// Projection type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum Projection {
+    #[default]
+    Perspective,
+    Orthographic,
+}
+
+/// How the user places the camera (plain data, part of the scene).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct CameraParams {
+    pub projection: Projection,
+    /// Degrees about +z, counter-clockwise seen from above.
+    pub azimuth: f32,
+    /// Degrees above the xy plane.
+    pub elevation: f32,
+    /// Magnification relative to the auto-fit (2 = twice as large).
+    pub zoom: f32,
+    /// Vertical field of view in degrees (perspective).
+    pub fov: f32,
+}
+
+impl Default for CameraParams {
+    fn default() -> Self {
+        CameraParams {
+            projection: Projection::Perspective,
+            azimuth: 0.0,
+            elevation: 0.0,
+            zoom: 1.0,
+            fov: 30.0,
+        }
+    }
+}
+
+/// A camera fitted to a box and an image size; gives one ray per pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct Camera {
+    pub eye: Vec3,
+    pub forward: Vec3,
+    pub right: Vec3,
+    pub up: Vec3,
+    projection: Projection,
+    /// Half height of the image plane at distance 1 (perspective) or in
+    /// world units (orthographic).
+    half_height: f32,
+    aspect: f32,
+    width: u32,
+    height: u32,
+}
+
+impl Camera {
+    /// Frames the box `[lo, hi]` so that its bounding sphere fits the image,
+    /// then applies orbit and zoom.
+    pub fn fit(params: &CameraParams, lo: Vec3, hi: Vec3, width: u32, height: u32) -> Camera {
+        let center = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-6);
+        let az = params.azimuth.to_radians();
+        let el = params.elevation.clamp(-89.9, 89.9).to_radians();
+        // Unit vector from the centre to the eye.
+        let to_eye = Vec3::new(az.sin() * el.cos(), -az.cos() * el.cos(), el.sin());
+        let forward = -to_eye;
+        let right = forward.cross(Vec3::Z).normalize();
+        let up = right.cross(forward);
+        let aspect = width as f32 / height.max(1) as f32;
+        let zoom = if params.zoom > 0.0 { params.zoom } else { 1.0 };
+        match params.projection {
+            Projection::Perspective => {
+                let fov = params.fov.clamp(1.0, 170.0).to_radians();
+                let tan_v = (fov * 0.5).tan();
+                // The sphere must fit the narrower of the two fields of view.
+                let tan_min = tan_v * aspect.min(1.0);
+                let half_min = tan_min.atan();
+                let dist = radius / half_min.sin() / zoom;
+                Camera {
+                    eye: center + to_eye * dist,
+                    forward,
+                    right,
+                    up,
+                    projection: Projection::Perspective,
+                    half_height: tan_v,
+                    aspect,
+                    width,
+                    height,
+                }
+            }
+            Projection::Orthographic => {
+                let half = radius / zoom / aspect.min(1.0);
+                Camera {
+                    eye: center + to_eye * (radius * 3.0),
+                    forward,
+                    right,
+                    up,
+                    projection: Projection::Orthographic,
+                    half_height: half,
+                    aspect,
+                    width,
+                    height,
+                }
+            }
+        }
+    }
+
+    /// The ray through the centre of pixel `(x, y)` (row 0 at the top):
+    /// origin and unit direction.
+    #[inline]
+    pub fn ray(&self, x: u32, y: u32) -> (Vec3, Vec3) {
+        self.ray_at(x as f32 + 0.5, y as f32 + 0.5)
+    }
+
+    /// The ray through image position `(px, py)` in pixels.
+    #[inline]
+    pub fn ray_at(&self, px: f32, py: f32) -> (Vec3, Vec3) {
+        let sx = (2.0 * px / self.width as f32 - 1.0) * self.half_height * self.aspect;
+        let sy = (1.0 - 2.0 * py / self.height as f32) * self.half_height;
+        match self.projection {
+            Projection::Perspective => {
+                let d = (self.forward + self.right * sx + self.up * sy).normalize();
+                (self.eye, d)
+            }
+            Projection::Orthographic => (self.eye + self.right * sx + self.up * sy, self.forward),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn project(cam: &Camera, p: Vec3) -> (f32, f32) {
+        // Inverse of ray_at for a perspective camera.
+        let d = p - cam.eye;
+        let z = d.dot(cam.forward);
+        let sx = d.dot(cam.right) / z;
+        let sy = d.dot(cam.up) / z;
+        let px = (sx / (cam.half_height * cam.aspect) + 1.0) * 0.5 * cam.width as f32;
+        let py = (1.0 - sy / cam.half_height) * 0.5 * cam.height as f32;
+        (px, py)
+    }
+
+    #[test]
+    fn default_view_has_x_right_z_up() {
+        let cam = Camera::fit(&CameraParams::default(), Vec3::ZERO, Vec3::splat(10.0), 100, 100);
+        assert!((cam.forward - Vec3::Y).length() < 1e-6);
+        assert!((cam.right - Vec3::X).length() < 1e-6);
+        assert!((cam.up - Vec3::Z).length() < 1e-6);
+        let (px, _) = project(&cam, Vec3::new(10.0, 5.0, 5.0));
+        assert!(px > 60.0);
+        let (_, py) = project(&cam, Vec3::new(5.0, 5.0, 10.0));
+        assert!(py < 40.0);
+    }
+
+    #[test]
+    fn azimuth_90_looks_along_minus_x() {
+        let p = CameraParams { azimuth: 90.0, ..Default::default() };
+        let cam = Camera::fit(&p, Vec3::ZERO, Vec3::ONE, 64, 64);
+        assert!((cam.forward + Vec3::X).length() < 1e-5);
+        assert!((cam.eye.x - 0.5) > 0.0);
+    }
+
+    #[test]
+    fn fit_keeps_the_box_inside_the_image() {
+        for proj in [Projection::Perspective, Projection::Orthographic] {
+            let p = CameraParams { projection: proj, azimuth: 33.0, elevation: 21.0, ..Default::default() };
+            let (lo, hi) = (Vec3::new(-3.0, 0.0, 1.0), Vec3::new(5.0, 2.0, 9.0));
+            let cam = Camera::fit(&p, lo, hi, 200, 100);
+            // Corner rays: every corner of the box projects inside the image.
+            for i in 0..8 {
+                let c = Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                let (px, py) = match proj {
+                    Projection::Perspective => project(&cam, c),
+                    Projection::Orthographic => {
+                        let d = c - cam.eye;
+                        let sx = d.dot(cam.right);
+                        let sy = d.dot(cam.up);
+                        (
+                            (sx / (cam.half_height * cam.aspect) + 1.0) * 100.0,
+                            (1.0 - sy / cam.half_height) * 50.0,
+                        )
+                    }
+                };
+                assert!((0.0..=200.0).contains(&px) && (0.0..=100.0).contains(&py), "{proj:?} {c} → {px},{py}");
+            }
+        }
+    }
+}

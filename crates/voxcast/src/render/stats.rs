@@ -1,0 +1,44 @@
+//! Counts of the work a render did, summed per tile without locks.
+
+use serde::{Deserialize, Serialize};
+
+/// What a render cost. `interpolations` counts trilinear reconstructions of
+/// the value (what S0 counts); gradient lookups are counted apart.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct RenderStats {
+    /// Rays cast (one per pixel).
+    pub rays: u64,
+    /// Rays that met the volume's box.
+    pub rays_hit: u64,
+    /// Sample positions visited along rays.
+    pub samples: u64,
+    /// Trilinear interpolations of the value.
+    pub interpolations: u64,
+    /// Trilinear interpolations made for gradients (shading).
+    pub gradient_interpolations: u64,
+    /// Rays stopped by early ray termination.
+    pub early_terminated: u64,
+    /// Wall-clock seconds of the render.
+    pub seconds: f64,
+}
+
+impl RenderStats {
+    /// Adds the counts of `o` (not the time).
+    pub fn add(&mut self, o: &RenderStats) {
+        self.rays += o.rays;
+        self.rays_hit += o.rays_hit;
+        self.samples += o.samples;
+        self.interpolations += o.interpolations;
+        self.gradient_interpolations += o.gradient_interpolations;
+        self.early_terminated += o.early_terminated;
+    }
+
+    /// Samples per second of wall time.
+    pub fn samples_per_second(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.samples as f64 / self.seconds
+        } else {
+            0.0
+        }
+    }
+}
