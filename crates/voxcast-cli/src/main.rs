@@ -36,6 +36,12 @@ fn render(a: RenderArgs) -> Result<()> {
         Some(p) => Scene::load(p)?,
         None => Scene::default(),
     };
+    if a.scene.is_none() && a.input.is_none() {
+        // The demo's own three-quarter view (flags given still override it).
+        scene.camera.azimuth = 30.0;
+        scene.camera.elevation = 20.0;
+        scene.camera.zoom = 1.6;
+    }
     a.apply(&mut scene)?;
     let out = a.output.clone().unwrap_or_else(|| PathBuf::from("render.png"));
     check_output(&out, &scene.input.path, &["png", "exr"])?;

@@ -141,7 +141,7 @@ impl Scene {
         if s.map_is_file() {
             s.transfer.tf = relative_to(Path::new(&s.transfer.tf), base);
         }
-        let text = toml::to_string_pretty(&s).map_err(|e| Error::invalid(format!("cannot write the scene: {e}")))?;
+        let text = toml::to_string(&s).map_err(|e| Error::invalid(format!("cannot write the scene: {e}")))?;
         let header = "# voxcast scene: render it with `voxcast render --scene THIS_FILE`\n";
         atomic_write(path, |f| {
             use std::io::Write;

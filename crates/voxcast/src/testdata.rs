@@ -14,7 +14,7 @@ pub fn data_dir() -> Option<PathBuf> {
         return d.is_dir().then_some(d);
     }
     let d = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    d.is_dir().then_some(d)
+    d.canonicalize().ok().filter(|d| d.is_dir())
 }
 
 /// The path of `rel` inside the data folder, or `None` (with a note on

@@ -355,31 +355,32 @@ pub const LUT_SIZE: usize = 4096;
 /// of one full step of length `ratio` (step / unit length), precomputed.
 #[derive(Clone, Debug)]
 pub struct Lut {
-    /// `[r, g, b, α_step]` per entry, colour linear.
-    entries: Vec<[f32; 4]>,
+    /// `[r, g, b, α_step]` per entry, colour linear. Fixed-size arrays let
+    /// the compiler drop the bounds checks of the clamped index.
+    entries: Box<[[f32; 4]; LUT_SIZE]>,
     /// Extinction per unit length per entry.
-    sigma: Vec<f32>,
+    sigma: Box<[f32; LUT_SIZE]>,
 }
 
 impl Lut {
     /// Bakes `tf` for steps of `ratio` unit lengths.
     pub fn new(tf: &TransferFunction, ratio: f32) -> Lut {
-        let mut entries = Vec::with_capacity(LUT_SIZE);
-        let mut sigma = Vec::with_capacity(LUT_SIZE);
+        let mut entries = Box::new([[0.0f32; 4]; LUT_SIZE]);
+        let mut sigma = Box::new([0.0f32; LUT_SIZE]);
         for i in 0..LUT_SIZE {
             let v = i as f32 / (LUT_SIZE - 1) as f32;
             let c = tf.color_at(v);
             let a = tf.opacity_at(v).clamp(0.0, MAX_ALPHA);
             let s = -(1.0 - a).ln();
-            sigma.push(s);
+            sigma[i] = s;
             // S4 opacity correction: α' = 1 − (1 − α)^(Δs/Δs₀).
             let a_step = 1.0 - (-s * ratio).exp();
-            entries.push([
+            entries[i] = [
                 srgb_to_linear(c[0]),
                 srgb_to_linear(c[1]),
                 srgb_to_linear(c[2]),
                 a_step,
-            ]);
+            ];
         }
         Lut { entries, sigma }
     }
