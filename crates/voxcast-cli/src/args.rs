@@ -30,7 +30,7 @@ pub struct Cli {
 pub enum Command {
     /// Render a volume (or the built-in demo) to a PNG/EXR image.
     #[command(after_long_help = RENDER_HELP)]
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
     /// Print a volume's dims, type, spacing, value range and histogram.
     Info(InfoArgs),
     /// Compare two images: PSNR (dB) and SSIM.
@@ -60,7 +60,12 @@ pub struct OpenArgs {
     #[arg(long, value_name = "TYPE", help_heading = "Input")]
     pub raw_type: Option<String>,
     /// Raw byte order: little or big.
-    #[arg(long, value_name = "ENDIAN", default_value = "little", help_heading = "Input")]
+    #[arg(
+        long,
+        value_name = "ENDIAN",
+        default_value = "little",
+        help_heading = "Input"
+    )]
     pub raw_endian: String,
     /// Bytes to skip at the start of a raw file.
     #[arg(long, value_name = "N", default_value_t = 0, help_heading = "Input")]
@@ -83,7 +88,12 @@ impl OpenArgs {
                     "big" | "be" => true,
                     e => bail!("--raw-endian {e}: expected little or big"),
                 };
-                Some(RawLayout { dims, scalar_type, big_endian, header_bytes: self.raw_header_bytes })
+                Some(RawLayout {
+                    dims,
+                    scalar_type,
+                    big_endian,
+                    header_bytes: self.raw_header_bytes,
+                })
             }
             (Some(_), None) => bail!("--raw-dims needs --raw-type (u8, u16, i16 or f32)"),
             (None, Some(_)) => bail!("--raw-type needs --raw-dims X,Y,Z"),
@@ -145,7 +155,12 @@ pub struct RenderArgs {
     #[arg(long, value_name = "NAME|FILE", help_heading = "Transfer function")]
     pub tf: Option<String>,
     /// Data values mapped to the ends of the transfer function (e.g. -1000,2000 HU).
-    #[arg(long, value_name = "LO,HI", allow_hyphen_values = true, help_heading = "Transfer function")]
+    #[arg(
+        long,
+        value_name = "LO,HI",
+        allow_hyphen_values = true,
+        help_heading = "Transfer function"
+    )]
     pub window: Option<String>,
 
     /// Image size.
@@ -234,7 +249,7 @@ impl RenderArgs {
                 .map(|p| p.trim().parse())
                 .collect::<std::result::Result<_, _>>()
                 .map_err(|_| anyhow::anyhow!("--window {w}: expected LO,HI"))?;
-            if v.len() != 2 || !(v[0] < v[1]) {
+            if v.len() != 2 || v.iter().any(|x| !x.is_finite()) || v[0] >= v[1] {
                 bail!("--window {w}: expected LO,HI with LO < HI");
             }
             scene.transfer.window = Some([v[0], v[1]]);
@@ -255,7 +270,7 @@ impl RenderArgs {
             c.elevation = v;
         }
         if let Some(v) = self.zoom {
-            if !(v > 0.0) {
+            if v.is_nan() || v <= 0.0 {
                 bail!("--zoom {v}: must be positive");
             }
             c.zoom = v;

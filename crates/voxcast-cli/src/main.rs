@@ -17,7 +17,7 @@ use voxcast::{metrics, Image};
 fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
-        Command::Render(a) => render(a),
+        Command::Render(a) => render(*a),
         Command::Info(a) => info(a),
         Command::Compare(a) => compare(a),
         Command::Presets => {
@@ -43,7 +43,10 @@ fn render(a: RenderArgs) -> Result<()> {
         scene.camera.zoom = 1.6;
     }
     a.apply(&mut scene)?;
-    let out = a.output.clone().unwrap_or_else(|| PathBuf::from("render.png"));
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("render.png"));
     check_output(&out, &scene.input.path, &["png", "exr"])?;
     if let Some(f) = &a.float_out {
         check_output(f, &scene.input.path, &["exr"])?;
@@ -124,7 +127,10 @@ fn check_output(out: &Path, input: &str, exts: &[&str]) -> Result<()> {
         bail!(
             "{}: output must end in {}",
             out.display(),
-            exts.iter().map(|e| format!(".{e}")).collect::<Vec<_>>().join(" or ")
+            exts.iter()
+                .map(|e| format!(".{e}"))
+                .collect::<Vec<_>>()
+                .join(" or ")
         );
     }
     if !input.starts_with(BUILTIN_PREFIX) {
@@ -194,12 +200,25 @@ fn info(a: InfoArgs) -> Result<()> {
         "  extent      {:.4} … {:.4}, {:.4} … {:.4}, {:.4} … {:.4}",
         lo.x, hi.x, lo.y, hi.y, lo.z, hi.z
     );
-    let units = vol.units.as_deref().map(|u| format!(" {u}")).unwrap_or_default();
-    println!("  range       {} … {}{units}  (mean {:.4})", s.min, s.max, s.mean);
+    let units = vol
+        .units
+        .as_deref()
+        .map(|u| format!(" {u}"))
+        .unwrap_or_default();
+    println!(
+        "  range       {} … {}{units}  (mean {:.4})",
+        s.min, s.max, s.mean
+    );
     println!("  NaN / Inf   {} / {}", s.nan, s.inf);
-    let p: Vec<String> = pct.iter().map(|(q, v)| format!("p{}={}", (q * 100.0) as u32, v)).collect();
+    let p: Vec<String> = pct
+        .iter()
+        .map(|(q, v)| format!("p{}={}", (q * 100.0) as u32, v))
+        .collect();
     println!("  percentiles {}", p.join("  "));
-    println!("  histogram   {}  (64 bins, log counts)", sparkline(&vol.histogram(64).counts));
+    println!(
+        "  histogram   {}  (64 bins, log counts)",
+        sparkline(&vol.histogram(64).counts)
+    );
     if !vol.variables.is_empty() {
         println!("  variables   {}", vol.variables.join(", "));
     }
@@ -245,7 +264,10 @@ fn compare(a: CompareArgs) -> Result<()> {
 
 fn presets() {
     println!("Transfer-function presets (--tf NAME):");
-    println!("  {:<16} chosen from the data's histogram (the default)", "auto");
+    println!(
+        "  {:<16} chosen from the data's histogram (the default)",
+        "auto"
+    );
     for (n, d) in voxcast::transfer::PRESETS {
         println!("  {n:<16} {d}");
     }

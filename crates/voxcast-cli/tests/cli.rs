@@ -23,7 +23,10 @@ fn data(rel: &str) -> Option<String> {
 #[test]
 fn render_without_input_renders_the_demo() {
     let dir = tempfile::tempdir().unwrap();
-    let o = voxcast(&["render", "--size", "96x64", "--stats-json", "s.json"], dir.path());
+    let o = voxcast(
+        &["render", "--size", "96x64", "--stats-json", "s.json"],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let img = voxcast::Image::read(&dir.path().join("render.png")).unwrap();
     assert_eq!((img.width, img.height), (96, 64));
@@ -41,13 +44,31 @@ fn render_without_input_renders_the_demo() {
 fn saved_scene_reproduces_the_image_byte_for_byte() {
     let dir = tempfile::tempdir().unwrap();
     let args = [
-        "render", "builtin:sphere", "-o", "a.png", "--size", "64x48", "--azimuth", "40",
-        "--elevation", "-15", "--tf", "fire", "--step", "0.7", "--background", "#203040",
-        "--save-scene", "scene.toml",
+        "render",
+        "builtin:sphere",
+        "-o",
+        "a.png",
+        "--size",
+        "64x48",
+        "--azimuth",
+        "40",
+        "--elevation",
+        "-15",
+        "--tf",
+        "fire",
+        "--step",
+        "0.7",
+        "--background",
+        "#203040",
+        "--save-scene",
+        "scene.toml",
     ];
     let o = voxcast(&args, dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
-    let o = voxcast(&["render", "--scene", "scene.toml", "-o", "b.png"], dir.path());
+    let o = voxcast(
+        &["render", "--scene", "scene.toml", "-o", "b.png"],
+        dir.path(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let a = std::fs::read(dir.path().join("a.png")).unwrap();
     let b = std::fs::read(dir.path().join("b.png")).unwrap();
@@ -62,7 +83,19 @@ fn saved_scene_reproduces_the_image_byte_for_byte() {
 fn compare_reports_psnr_and_ssim() {
     let dir = tempfile::tempdir().unwrap();
     for (name, az) in [("a.png", "0"), ("b.png", "5")] {
-        let o = voxcast(&["render", "builtin:demo", "-o", name, "--size", "64x64", "--azimuth", az], dir.path());
+        let o = voxcast(
+            &[
+                "render",
+                "builtin:demo",
+                "-o",
+                name,
+                "--size",
+                "64x64",
+                "--azimuth",
+                az,
+            ],
+            dir.path(),
+        );
         assert!(o.status.success(), "{}", stderr(&o));
     }
     let o = voxcast(&["compare", "a.png", "b.png", "--json"], dir.path());
@@ -82,18 +115,74 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
     std::fs::write(d.join("junk.xyz"), b"hello").unwrap();
     std::fs::write(d.join("bad.toml"), "[render]\nwidth = -3\n").unwrap();
     let cases: Vec<(Vec<&str>, &str)> = vec![
-        (vec!["render", "tiny.raw", "--raw-dims", "1000,1000,1000", "--raw-type", "u8", "-o", "o.png"], "tiny.raw"),
+        (
+            vec![
+                "render",
+                "tiny.raw",
+                "--raw-dims",
+                "1000,1000,1000",
+                "--raw-type",
+                "u8",
+                "-o",
+                "o.png",
+            ],
+            "tiny.raw",
+        ),
         (vec!["render", "tiny.raw", "-o", "o.png"], "--raw-dims"),
-        (vec!["render", "missing.nrrd", "-o", "o.png"], "missing.nrrd"),
+        (
+            vec!["render", "missing.nrrd", "-o", "o.png"],
+            "missing.nrrd",
+        ),
         (vec!["render", "junk.xyz", "-o", "o.png"], "junk.xyz"),
         (vec!["render", "builtin:nope", "-o", "o.png"], "nope"),
-        (vec!["render", "builtin:demo", "--tf", "no-such-tf", "-o", "o.png"], "no-such-tf"),
-        (vec!["render", "builtin:demo", "--step", "0", "-o", "o.png"], "step"),
-        (vec!["render", "builtin:demo", "--size", "12", "-o", "o.png"], "--size"),
+        (
+            vec![
+                "render",
+                "builtin:demo",
+                "--tf",
+                "no-such-tf",
+                "-o",
+                "o.png",
+            ],
+            "no-such-tf",
+        ),
+        (
+            vec!["render", "builtin:demo", "--step", "0", "-o", "o.png"],
+            "step",
+        ),
+        (
+            vec!["render", "builtin:demo", "--size", "12", "-o", "o.png"],
+            "--size",
+        ),
         (vec!["render", "builtin:demo", "-o", "o.jpg"], "o.jpg"),
-        (vec!["render", "--scene", "bad.toml", "-o", "o.png"], "bad.toml"),
-        (vec!["render", "tiny.raw", "--raw-dims", "4,4,4", "--raw-type", "u8", "-o", "tiny.raw"], "tiny.raw"),
-        (vec!["info", "tiny.raw", "--raw-dims", "0,4,4", "--raw-type", "u8"], "at least 1"),
+        (
+            vec!["render", "--scene", "bad.toml", "-o", "o.png"],
+            "bad.toml",
+        ),
+        (
+            vec![
+                "render",
+                "tiny.raw",
+                "--raw-dims",
+                "4,4,4",
+                "--raw-type",
+                "u8",
+                "-o",
+                "tiny.raw",
+            ],
+            "tiny.raw",
+        ),
+        (
+            vec![
+                "info",
+                "tiny.raw",
+                "--raw-dims",
+                "0,4,4",
+                "--raw-type",
+                "u8",
+            ],
+            "at least 1",
+        ),
         (vec!["compare", "nothere.png", "tiny.raw"], "nothere.png"),
     ];
     for (args, needle) in cases {
@@ -116,7 +205,9 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
 
 #[test]
 fn info_json_on_a_real_volume() {
-    let Some(p) = data("neghip/neghip.nhdr") else { return };
+    let Some(p) = data("neghip/neghip.nhdr") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let o = voxcast(&["info", &p, "--json"], dir.path());
     assert!(o.status.success(), "{}", stderr(&o));
@@ -129,7 +220,10 @@ fn info_json_on_a_real_volume() {
     assert_eq!(total, 64 * 64 * 64);
     let o = voxcast(&["info", &p], dir.path());
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("64 × 64 × 64") && text.contains("percentiles"), "{text}");
+    assert!(
+        text.contains("64 × 64 × 64") && text.contains("percentiles"),
+        "{text}"
+    );
 }
 
 /// Every real volume of a supported format loads and renders to a picture
@@ -150,7 +244,10 @@ fn renders_every_shared_volume() {
     for rel in inputs {
         let Some(p) = data(rel) else { continue };
         let out: PathBuf = dir.path().join("o.png");
-        let o = voxcast(&["render", &p, "-o", "o.png", "--size", "64x64", "-q"], dir.path());
+        let o = voxcast(
+            &["render", &p, "-o", "o.png", "--size", "64x64", "-q"],
+            dir.path(),
+        );
         assert!(o.status.success(), "{rel}: {}", stderr(&o));
         let img = voxcast::Image::read(&out).unwrap();
         let lit = img.pixels.iter().filter(|p| p[3] > 0.05).count();

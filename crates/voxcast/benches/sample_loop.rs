@@ -31,7 +31,12 @@ impl GridVisitor for Loop<'_> {
             let v = grid.sample(black_box(p));
             if let Some(i) = Lut::index(v) {
                 let e = self.lut.entry(i);
-                over_front(&mut c, &mut a, Vec3::new(e[0], e[1], e[2]) * e[3], e[3] * 0.01);
+                over_front(
+                    &mut c,
+                    &mut a,
+                    Vec3::new(e[0], e[1], e[2]) * e[3],
+                    e[3] * 0.01,
+                );
             }
         }
         c.x + a
@@ -43,11 +48,7 @@ fn volume(kind: &str) -> Volume {
     let f = |i: usize, j: usize, k: usize| ((i * 7 + j * 13 + k * 29) % 256) as f32;
     let v = Volume::from_fn([n, n, n], Vec3::ONE, f).unwrap();
     let data = match kind {
-        "u8" => VoxelData::U8(
-            (0..v.len())
-                .map(|i| v.data().get(i) as u8)
-                .collect(),
-        ),
+        "u8" => VoxelData::U8((0..v.len()).map(|i| v.data().get(i) as u8).collect()),
         "u16" => VoxelData::U16((0..v.len()).map(|i| v.data().get(i) as u16).collect()),
         _ => return v,
     };
@@ -82,7 +83,17 @@ fn whole_render(c: &mut Criterion) {
         };
         let name = if shading { "shaded" } else { "unshaded" };
         g.bench_function(name, |b| {
-            b.iter(|| render(&vol, &tf, [0.0, 255.0], &CameraParams::default(), &p, &|_, _| {}).unwrap())
+            b.iter(|| {
+                render(
+                    &vol,
+                    &tf,
+                    [0.0, 255.0],
+                    &CameraParams::default(),
+                    &p,
+                    &|_, _| {},
+                )
+                .unwrap()
+            })
         });
     }
     g.finish();

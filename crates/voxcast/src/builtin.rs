@@ -8,8 +8,14 @@ use glam::Vec3;
 
 /// The built-in volumes: name and description.
 pub const BUILTINS: &[(&str, &str)] = &[
-    ("demo", "128³ u8: a lattice-cut spherical shell around a glowing core, ringed by a torus"),
-    ("marschner-lobb", "41³ f32: the Marschner–Lobb test signal (fM = 6, α = 0.25)"),
+    (
+        "demo",
+        "128³ u8: a lattice-cut spherical shell around a glowing core, ringed by a torus",
+    ),
+    (
+        "marschner-lobb",
+        "41³ f32: the Marschner–Lobb test signal (fM = 6, α = 0.25)",
+    ),
     ("sphere", "64³ u8: a soft ball, densest at the centre"),
 ];
 

@@ -153,7 +153,13 @@ mod tests {
 
     #[test]
     fn default_view_has_x_right_z_up() {
-        let cam = Camera::fit(&CameraParams::default(), Vec3::ZERO, Vec3::splat(10.0), 100, 100);
+        let cam = Camera::fit(
+            &CameraParams::default(),
+            Vec3::ZERO,
+            Vec3::splat(10.0),
+            100,
+            100,
+        );
         assert!((cam.forward - Vec3::Y).length() < 1e-6);
         assert!((cam.right - Vec3::X).length() < 1e-6);
         assert!((cam.up - Vec3::Z).length() < 1e-6);
@@ -165,7 +171,10 @@ mod tests {
 
     #[test]
     fn azimuth_90_looks_along_minus_x() {
-        let p = CameraParams { azimuth: 90.0, ..Default::default() };
+        let p = CameraParams {
+            azimuth: 90.0,
+            ..Default::default()
+        };
         let cam = Camera::fit(&p, Vec3::ZERO, Vec3::ONE, 64, 64);
         assert!((cam.forward + Vec3::X).length() < 1e-5);
         assert!((cam.eye.x - 0.5) > 0.0);
@@ -174,7 +183,12 @@ mod tests {
     #[test]
     fn fit_keeps_the_box_inside_the_image() {
         for proj in [Projection::Perspective, Projection::Orthographic] {
-            let p = CameraParams { projection: proj, azimuth: 33.0, elevation: 21.0, ..Default::default() };
+            let p = CameraParams {
+                projection: proj,
+                azimuth: 33.0,
+                elevation: 21.0,
+                ..Default::default()
+            };
             let (lo, hi) = (Vec3::new(-3.0, 0.0, 1.0), Vec3::new(5.0, 2.0, 9.0));
             let cam = Camera::fit(&p, lo, hi, 200, 100);
             // Corner rays: every corner of the box projects inside the image.
@@ -196,7 +210,10 @@ mod tests {
                         )
                     }
                 };
-                assert!((0.0..=200.0).contains(&px) && (0.0..=100.0).contains(&py), "{proj:?} {c} → {px},{py}");
+                assert!(
+                    (0.0..=200.0).contains(&px) && (0.0..=100.0).contains(&py),
+                    "{proj:?} {c} → {px},{py}"
+                );
             }
         }
     }

@@ -43,7 +43,11 @@ impl Error {
 
     /// A format error: `field` of `path` is wrong; `message` says what was
     /// found and what was expected.
-    pub fn format(path: impl AsRef<Path>, field: impl Into<String>, message: impl Into<String>) -> Self {
+    pub fn format(
+        path: impl AsRef<Path>,
+        field: impl Into<String>,
+        message: impl Into<String>,
+    ) -> Self {
         Error::Format {
             path: path.as_ref().to_path_buf(),
             field: field.into(),

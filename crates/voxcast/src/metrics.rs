@@ -31,7 +31,11 @@ pub fn mse(a: &Image, b: &Image) -> Result<f64> {
 /// Peak signal-to-noise ratio in dB (peak 1); `inf` for identical images.
 pub fn psnr(a: &Image, b: &Image) -> Result<f64> {
     let m = mse(a, b)?;
-    Ok(if m == 0.0 { f64::INFINITY } else { -10.0 * m.log10() })
+    Ok(if m == 0.0 {
+        f64::INFINITY
+    } else {
+        -10.0 * m.log10()
+    })
 }
 
 /// Structural similarity (Wang et al. 2004) of the luma (Rec. 709 weights of
@@ -63,7 +67,8 @@ pub fn ssim(a: &Image, b: &Image) -> Result<f64> {
         let vx = sxx[i] - ux * ux;
         let vy = syy[i] - uy * uy;
         let cxy = sxy[i] - ux * uy;
-        total += ((2.0 * ux * uy + c1) * (2.0 * cxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2));
+        total +=
+            ((2.0 * ux * uy + c1) * (2.0 * cxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2));
     }
     Ok(total / (w * h).max(1) as f64)
 }

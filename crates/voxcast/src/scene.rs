@@ -126,7 +126,10 @@ impl Scene {
         if TransferFunction::preset(&scene.transfer.tf).is_none() && scene.transfer.tf != "auto" {
             scene.transfer.tf = join(base, &scene.transfer.tf);
         }
-        scene.render.validate().map_err(|e| Error::format(path, "render", e.to_string()))?;
+        scene
+            .render
+            .validate()
+            .map_err(|e| Error::format(path, "render", e.to_string()))?;
         Ok(scene)
     }
 
@@ -141,7 +144,8 @@ impl Scene {
         if s.map_is_file() {
             s.transfer.tf = relative_to(Path::new(&s.transfer.tf), base);
         }
-        let text = toml::to_string(&s).map_err(|e| Error::invalid(format!("cannot write the scene: {e}")))?;
+        let text = toml::to_string(&s)
+            .map_err(|e| Error::invalid(format!("cannot write the scene: {e}")))?;
         let header = "# voxcast scene: render it with `voxcast render --scene THIS_FILE`\n";
         atomic_write(path, |f| {
             use std::io::Write;
@@ -230,7 +234,11 @@ fn join(base: &Path, p: &str) -> String {
 /// `path` as it is.
 fn relative_to(path: &Path, base: &Path) -> String {
     let abs = |p: &Path| -> Option<PathBuf> {
-        let p = if p.as_os_str().is_empty() { Path::new(".") } else { p };
+        let p = if p.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            p
+        };
         std::path::absolute(p).ok().map(|a| normalize(&a))
     };
     let (Some(p), Some(b)) = (abs(path), abs(base)) else {
@@ -295,7 +303,10 @@ mod tests {
         assert_eq!(back.camera, s.camera);
         assert_eq!(back.render, s.render);
         assert_eq!(back.transfer, s.transfer);
-        assert_eq!(normalize(Path::new(&back.input.path)), normalize(Path::new(&s.input.path)));
+        assert_eq!(
+            normalize(Path::new(&back.input.path)),
+            normalize(Path::new(&s.input.path))
+        );
     }
 
     #[test]

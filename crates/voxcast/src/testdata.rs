@@ -24,7 +24,10 @@ pub fn data_path(rel: &str) -> Option<PathBuf> {
     match p {
         Some(p) if p.exists() => Some(p),
         _ => {
-            if std::env::var("CI").map(|v| v == "true" || v == "1").unwrap_or(false) {
+            if std::env::var("CI")
+                .map(|v| v == "true" || v == "1")
+                .unwrap_or(false)
+            {
                 panic!("test data {rel} is missing (set VOXCAST_DATA or put ../shared/data beside the project)");
             }
             eprintln!("skipping: test data {rel} not found");

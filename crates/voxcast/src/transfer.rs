@@ -33,13 +33,28 @@ pub struct TransferFunction {
 /// Names of the built-in presets.
 pub const PRESETS: &[(&str, &str)] = &[
     ("grayscale", "black to white, opacity rising with the value"),
-    ("ct-bone", "CT bone: transparent below ~150 HU, ivory bone (HU window on CT data)"),
-    ("ct-soft-tissue", "CT skin and soft tissue in reds, bone in ivory (HU window on CT data)"),
-    ("mri", "MRI: warm grey, soft ramp that hides the background noise"),
+    (
+        "ct-bone",
+        "CT bone: transparent below ~150 HU, ivory bone (HU window on CT data)",
+    ),
+    (
+        "ct-soft-tissue",
+        "CT skin and soft tissue in reds, bone in ivory (HU window on CT data)",
+    ),
+    (
+        "mri",
+        "MRI: warm grey, soft ramp that hides the background noise",
+    ),
     ("smoke", "smoke: grey, opacity proportional to density"),
     ("cloud", "cloud: white, opacity proportional to density"),
-    ("fire", "black-body ramp (black, red, orange, yellow, white)"),
-    ("viridis", "the perceptual viridis colour map with a linear opacity ramp"),
+    (
+        "fire",
+        "black-body ramp (black, red, orange, yellow, white)",
+    ),
+    (
+        "viridis",
+        "the perceptual viridis colour map with a linear opacity ramp",
+    ),
 ];
 
 /// Viridis (matplotlib), nine stops.
@@ -186,7 +201,10 @@ impl TransferFunction {
             return Err("needs at least one `color` and one `opacity` point".into());
         }
         for (name, vals) in [
-            ("color", self.color.iter().map(|p| p.to_vec()).collect::<Vec<_>>()),
+            (
+                "color",
+                self.color.iter().map(|p| p.to_vec()).collect::<Vec<_>>(),
+            ),
             ("opacity", self.opacity.iter().map(|p| p.to_vec()).collect()),
         ] {
             let mut last = f32::NEG_INFINITY;
@@ -195,11 +213,16 @@ impl TransferFunction {
                     return Err(format!("`{name}` point {p:?} is not finite"));
                 }
                 if p[0] < last {
-                    return Err(format!("`{name}` points must be sorted by value ({} after {last})", p[0]));
+                    return Err(format!(
+                        "`{name}` points must be sorted by value ({} after {last})",
+                        p[0]
+                    ));
                 }
                 last = p[0];
                 if p[1..].iter().any(|&x| !(0.0..=1.0).contains(&x)) {
-                    return Err(format!("`{name}` point {p:?}: colour/opacity must be in 0…1"));
+                    return Err(format!(
+                        "`{name}` point {p:?}: colour/opacity must be in 0…1"
+                    ));
                 }
             }
         }
@@ -259,7 +282,11 @@ impl TransferFunction {
             return [q[1], q[2], q[3]];
         }
         let (a, b) = (p[i - 1], p[i]);
-        let f = if b[0] > a[0] { (v - a[0]) / (b[0] - a[0]) } else { 1.0 };
+        let f = if b[0] > a[0] {
+            (v - a[0]) / (b[0] - a[0])
+        } else {
+            1.0
+        };
         [
             a[1] + (b[1] - a[1]) * f,
             a[2] + (b[2] - a[2]) * f,
@@ -271,7 +298,7 @@ impl TransferFunction {
     /// and above the last the end values hold, except that values below 0
     /// (below the window, and NaN/Inf voxels) are always transparent.
     pub fn opacity_at(&self, v: f32) -> f32 {
-        if !(v >= 0.0) {
+        if v.is_nan() || v < 0.0 {
             return 0.0;
         }
         let p = &self.opacity;
@@ -283,7 +310,11 @@ impl TransferFunction {
             return p[p.len() - 1][1];
         }
         let (a, b) = (p[i - 1], p[i]);
-        let f = if b[0] > a[0] { (v - a[0]) / (b[0] - a[0]) } else { 1.0 };
+        let f = if b[0] > a[0] {
+            (v - a[0]) / (b[0] - a[0])
+        } else {
+            1.0
+        };
         a[1] + (b[1] - a[1]) * f
     }
 
@@ -457,8 +488,14 @@ mod tests {
         std::fs::write(&p, "color = [[0.0, 0, 0, 0], [1.0, 1, 1, 1]]\nopacity = [[0.0, 0.0], [1.0, 0.5]]\nwindow = [-100.0, 100.0]\n").unwrap();
         let tf = TransferFunction::from_toml_file(&p).unwrap();
         assert_eq!(tf.window, Some([-100.0, 100.0]));
-        std::fs::write(&p, "color = [[0.5, 0, 0, 0], [0.1, 1, 1, 1]]\nopacity = [[0.0, 0.0]]\n").unwrap();
-        let e = TransferFunction::from_toml_file(&p).unwrap_err().to_string();
+        std::fs::write(
+            &p,
+            "color = [[0.5, 0, 0, 0], [0.1, 1, 1, 1]]\nopacity = [[0.0, 0.0]]\n",
+        )
+        .unwrap();
+        let e = TransferFunction::from_toml_file(&p)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("tf.toml") && e.contains("sorted"), "{e}");
         std::fs::write(&p, "color = 3\n").unwrap();
         assert!(TransferFunction::from_toml_file(&p).is_err());

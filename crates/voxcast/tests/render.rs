@@ -36,7 +36,11 @@ fn params(w: u32, h: u32) -> RenderParams {
 
 fn draw(vol: &Volume, tf: &TransferFunction, cam: &CameraParams, p: &RenderParams) -> Image {
     let s = vol.stats();
-    let window = if s.max > s.min { [s.min, s.max] } else { [s.min - 0.5, s.min + 0.5] };
+    let window = if s.max > s.min {
+        [s.min, s.max]
+    } else {
+        [s.min - 0.5, s.min + 0.5]
+    };
     render(vol, tf, window, cam, p, &no_progress).unwrap().0
 }
 
@@ -59,7 +63,10 @@ fn homogeneous_slab_matches_beer_lambert() {
     let expect = 1.0 - (-sigma * length).exp();
     let c = srgb_to_linear(gray) as f64;
     for step in [0.25, 0.3, 0.5, 1.0] {
-        for model in [OpticalModel::EmissionAbsorption, OpticalModel::AbsorptionOnly] {
+        for model in [
+            OpticalModel::EmissionAbsorption,
+            OpticalModel::AbsorptionOnly,
+        ] {
             let mut p = params(33, 33);
             p.step = step;
             p.optical = model;
@@ -72,12 +79,15 @@ fn homogeneous_slab_matches_beer_lambert() {
                 // Absorption only: the background seen through the slab.
                 _ => 1.0 - expect,
             };
-            assert!((px[3] as f64 - expect).abs() < 1e-3, "step {step}: α {} vs {expect}", px[3]);
-            for ch in 0..3 {
+            assert!(
+                (px[3] as f64 - expect).abs() < 1e-3,
+                "step {step}: α {} vs {expect}",
+                px[3]
+            );
+            for c in &px[..3] {
                 assert!(
-                    (px[ch] as f64 - want_rgb).abs() < 1e-3,
-                    "step {step} {model:?}: {} vs {want_rgb}",
-                    px[ch]
+                    (*c as f64 - want_rgb).abs() < 1e-3,
+                    "step {step} {model:?}: {c} vs {want_rgb}"
                 );
             }
         }
@@ -123,7 +133,10 @@ fn front_to_back_equals_back_to_front_and_ert_is_bounded() {
             p.ert = threshold;
             let ert = draw(&vol, &tf, &cam, &p);
             let d = max_diff(&ftb, &ert);
-            assert!(d <= 1.0 - threshold + 1e-6, "ERT {threshold}: a pixel moved by {d}");
+            assert!(
+                d <= 1.0 - threshold + 1e-6,
+                "ERT {threshold}: a pixel moved by {d}"
+            );
         }
     }
     // And ERT really did terminate rays on this scene.
@@ -188,7 +201,10 @@ fn axis_convention_matches_the_readme() {
         ..Default::default()
     };
     let (x, y) = look([28.0, 28.0, 16.0], &top);
-    assert!(x > mid + 8.0 && y < mid - 8.0, "top view: (+x,+y) marker at {x},{y}");
+    assert!(
+        x > mid + 8.0 && y < mid - 8.0,
+        "top view: (+x,+y) marker at {x},{y}"
+    );
 }
 
 #[test]
@@ -216,7 +232,8 @@ fn step_size_changes_cost_not_picture() {
     assert!(psnr > 40.0, "step 1 vs 1/8: {psnr} dB");
     // Without opacity correction a step 8× longer would be far darker; the
     // mean opacity must agree within 1 %.
-    let mean = |i: &Image| i.pixels.iter().map(|p| p[3] as f64).sum::<f64>() / i.pixels.len() as f64;
+    let mean =
+        |i: &Image| i.pixels.iter().map(|p| p[3] as f64).sum::<f64>() / i.pixels.len() as f64;
     assert!((mean(&fine) / mean(&coarse) - 1.0).abs() < 0.01);
 }
 
@@ -228,7 +245,13 @@ fn nan_voxels_are_empty() {
     let nan_vol = Volume::new([8, 8, 8], Vec3::ONE, Vec3::ZERO, VoxelData::F32(v)).unwrap();
     assert_eq!(nan_vol.stats().nan, 1);
     assert_eq!(nan_vol.stats().inf, 1);
-    let all_nan = Volume::new([4, 4, 4], Vec3::ONE, Vec3::ZERO, VoxelData::F32(vec![f32::NAN; 64])).unwrap();
+    let all_nan = Volume::new(
+        [4, 4, 4],
+        Vec3::ONE,
+        Vec3::ZERO,
+        VoxelData::F32(vec![f32::NAN; 64]),
+    )
+    .unwrap();
     let tf = constant_tf(1.0, 0.9);
     let img = draw(&all_nan, &tf, &CameraParams::default(), &params(16, 16));
     assert!(img.pixels.iter().all(|p| p[3] == 0.0));

@@ -105,7 +105,10 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Ok(Format::Dicom)
     } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
         Ok(Format::MetaImage)
-    } else if head.starts_with(b"\x89PNG") || head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
+    } else if head.starts_with(b"\x89PNG")
+        || head.starts_with(b"II*\0")
+        || head.starts_with(b"MM\0*")
+    {
         Ok(Format::ImageStack)
     } else if name.ends_with(".raw") {
         Err(Error::invalid(format!(

@@ -30,7 +30,12 @@ mod tests {
     use crate::volume::ScalarType;
 
     fn layout(dims: [u64; 3], ty: ScalarType, big: bool) -> RawLayout {
-        RawLayout { dims, scalar_type: ty, big_endian: big, header_bytes: 0 }
+        RawLayout {
+            dims,
+            scalar_type: ty,
+            big_endian: big,
+            header_bytes: 0,
+        }
     }
 
     #[test]
@@ -53,7 +58,10 @@ mod tests {
         std::fs::write(&p, [0u8; 1024]).unwrap();
         let e = read(&p, &layout([1000, 1000, 1000], ScalarType::U8, false)).unwrap_err();
         let s = e.to_string();
-        assert!(s.contains("v.raw") && s.contains("--raw-dims") && s.contains("1000000000"), "{s}");
+        assert!(
+            s.contains("v.raw") && s.contains("--raw-dims") && s.contains("1000000000"),
+            "{s}"
+        );
         let e = read(&p, &layout([0, 4, 4], ScalarType::U8, false)).unwrap_err();
         assert!(e.to_string().contains("at least 1"), "{e}");
         let e = read(&p, &layout([u64::MAX, 2, 2], ScalarType::F32, false)).unwrap_err();

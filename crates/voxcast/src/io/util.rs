@@ -21,12 +21,19 @@ pub fn read_head(path: &Path, n: usize) -> Result<Vec<u8>> {
 
 /// Size of a file in bytes.
 pub fn file_len(path: &Path) -> Result<u64> {
-    Ok(std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len())
+    Ok(std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len())
 }
 
 /// Checks dims from a header (`field` names them in the error) and returns
 /// the voxel count and the byte count for `ty`.
-pub fn check_dims(path: &Path, field: &str, dims: [u64; 3], ty: ScalarType) -> Result<(usize, u64)> {
+pub fn check_dims(
+    path: &Path,
+    field: &str,
+    dims: [u64; 3],
+    ty: ScalarType,
+) -> Result<(usize, u64)> {
     let n = checked_voxel_count(dims).map_err(|m| Error::format(path, field, m))?;
     Ok((n, n as u64 * ty.size() as u64))
 }
@@ -73,7 +80,8 @@ pub fn read_payload(
         ));
     }
     let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset)).map_err(|e| Error::io(path, e))?;
+    std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
     let bytes = if gzip {
         read_exact_or_short(flate2::read::MultiGzDecoder::new(f), n_bytes, path, field)?
     } else {
@@ -122,7 +130,11 @@ pub fn parse_numbers<T: std::str::FromStr, const N: usize>(
     let mut out = Vec::with_capacity(N);
     for p in parts {
         out.push(p.parse::<T>().map_err(|_| {
-            Error::format(path, field, format!("`{p}` is not a valid number (in `{}`)", s.trim()))
+            Error::format(
+                path,
+                field,
+                format!("`{p}` is not a valid number (in `{}`)", s.trim()),
+            )
         })?);
     }
     out.try_into()
@@ -145,7 +157,11 @@ pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
                 let (da, db) = (&a[..na], &b[..nb]);
                 let ta = trim_zeros(da);
                 let tb = trim_zeros(db);
-                let ord = ta.len().cmp(&tb.len()).then_with(|| ta.cmp(tb)).then(na.cmp(&nb));
+                let ord = ta
+                    .len()
+                    .cmp(&tb.len())
+                    .then_with(|| ta.cmp(tb))
+                    .then(na.cmp(&nb));
                 if ord != Ordering::Equal {
                     return ord;
                 }

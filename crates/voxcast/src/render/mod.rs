@@ -15,7 +15,7 @@ use crate::camera::{Camera, CameraParams};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
-use crate::volume::{Grid, GridVisitor, Voxel, Volume};
+use crate::volume::{Grid, GridVisitor, Volume, Voxel};
 use glam::{Vec3, Vec4};
 use march::{intersect_box, Marcher, Uniform};
 use optics::{over_back, over_front, AbsorptionOnly, EmissionAbsorption, EmissionOnly, Optics};
@@ -131,7 +131,14 @@ pub fn render(
     if !(window[0].is_finite() && window[1].is_finite() && window[0] < window[1]) {
         // A constant volume has min == max: widen so it still normalises.
         if window[0].is_finite() && window[0] == window[1] {
-            return render(volume, tf, [window[0] - 0.5, window[0] + 0.5], camera, params, progress);
+            return render(
+                volume,
+                tf,
+                [window[0] - 0.5, window[0] + 0.5],
+                camera,
+                params,
+                progress,
+            );
         }
         return Err(Error::invalid(format!(
             "window [{}, {}] must have lo < hi",
@@ -196,7 +203,13 @@ impl Job<'_> {
         let (w, h) = (self.params.width, self.params.height);
         let dims = self.volume.dims();
         // A one-voxel axis gets a one-voxel-thick box so it can be seen.
-        let axis = |d: usize| if d > 1 { (0.0, (d - 1) as f32) } else { (-0.5, 0.5) };
+        let axis = |d: usize| {
+            if d > 1 {
+                (0.0, (d - 1) as f32)
+            } else {
+                (-0.5, 0.5)
+            }
+        };
         let (ax, ay, az) = (axis(dims[0]), axis(dims[1]), axis(dims[2]));
         let ctx = RayCtx {
             grid,

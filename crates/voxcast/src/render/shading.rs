@@ -44,6 +44,7 @@ impl BlinnPhong {
         let spec = ndl.powf(self.shininess);
         // Clamped so a sample never emits more than a white one: keeps the
         // early-termination error bound `1 − threshold`.
-        (rgb * (self.ambient + self.diffuse * ndl) + Vec3::splat(self.specular * spec)).min(Vec3::ONE)
+        (rgb * (self.ambient + self.diffuse * ndl) + Vec3::splat(self.specular * spec))
+            .min(Vec3::ONE)
     }
 }

@@ -72,7 +72,11 @@ impl<'a, T: Voxel> Grid<'a, T> {
         Grid {
             data,
             dims,
-            max: Vec3::new((dims[0] - 1) as f32, (dims[1] - 1) as f32, (dims[2] - 1) as f32),
+            max: Vec3::new(
+                (dims[0] - 1) as f32,
+                (dims[1] - 1) as f32,
+                (dims[2] - 1) as f32,
+            ),
             last: dims.map(|d| d.saturating_sub(2)),
             step: [
                 if dims[0] > 1 { sx } else { 0 },

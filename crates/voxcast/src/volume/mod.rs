@@ -248,7 +248,11 @@ impl Volume {
 
     /// Makes an f32 volume from a function of the voxel index (for built-in
     /// scenes and tests).
-    pub fn from_fn(dims: [usize; 3], spacing: Vec3, f: impl Fn(usize, usize, usize) -> f32) -> Result<Volume> {
+    pub fn from_fn(
+        dims: [usize; 3],
+        spacing: Vec3,
+        f: impl Fn(usize, usize, usize) -> f32,
+    ) -> Result<Volume> {
         checked_voxel_count(dims.map(|d| d as u64)).map_err(Error::invalid)?;
         let mut v = Vec::with_capacity(dims[0] * dims[1] * dims[2]);
         for k in 0..dims[2] {

@@ -31,7 +31,13 @@ impl ValueStats {
                 sum += x;
             }
             if v.is_empty() {
-                return ValueStats { min: 0.0, max: 0.0, mean: 0.0, nan: 0, inf: 0 };
+                return ValueStats {
+                    min: 0.0,
+                    max: 0.0,
+                    mean: 0.0,
+                    nan: 0,
+                    inf: 0,
+                };
             }
             ValueStats {
                 min: lo as f32,
