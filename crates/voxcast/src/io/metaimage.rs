@@ -26,7 +26,7 @@
 //! are ignored: the volume is placed axis-aligned at the offset. Bytes after
 //! the data are ignored, as MetaIO does.
 
-use super::nrrd::{
+use super::decode::{
     byte_count, check_header_size, check_origin, check_spacing, concat, decode, in_data_file,
     make_volume, parse_ascii, parse_floats, parse_sizes, per_file_count, read_binary, read_text,
     resolve_data_path, shorten, LineReader, Pattern, StoredType,

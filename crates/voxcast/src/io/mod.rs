@@ -5,6 +5,7 @@
 //! the file before it allocates, and reports bad input as an [`Error`] naming
 //! the file, the field and what was expected.
 
+mod decode;
 pub mod dicom;
 pub mod image_stack;
 pub mod metaimage;

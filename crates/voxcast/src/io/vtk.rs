@@ -27,7 +27,7 @@
 //! types for the volume. Negative spacings are taken as their magnitude (the
 //! axis flip is not applied).
 
-use super::nrrd::{
+use super::decode::{
     byte_count, check_origin, check_spacing, make_volume, parse_ascii, parse_floats, parse_sizes,
     read_binary, read_text, shorten, LineReader, StoredType, Tokens,
 };
