@@ -136,30 +136,37 @@ impl VoxelData {
     /// type that holds it exactly (i16 for CT Hounsfield units, else f32).
     /// Identity scaling returns the data unchanged.
     pub fn rescaled(self, slope: f64, intercept: f64) -> VoxelData {
+        fn scale<T: Copy + Into<f64> + Sync>(v: &[T], slope: f64, intercept: f64) -> VoxelData {
+            use rayon::prelude::*;
+            let f = |x: T| x.into() * slope + intercept;
+            let integral = slope.fract() == 0.0 && intercept.fract() == 0.0;
+            if integral && !v.is_empty() {
+                let (lo, hi) = v.par_iter().map(|&x| (f(x), f(x))).reduce(
+                    || (f64::INFINITY, f64::NEG_INFINITY),
+                    |a, b| (a.0.min(b.0), a.1.max(b.1)),
+                );
+                if lo >= i16::MIN as f64 && hi <= i16::MAX as f64 {
+                    return VoxelData::I16(v.par_iter().map(|&x| f(x) as i16).collect());
+                }
+            }
+            VoxelData::F32(v.par_iter().map(|&x| f(x) as f32).collect())
+        }
         if slope == 1.0 && intercept == 0.0 {
             return self;
         }
-        let integral = slope.fract() == 0.0 && intercept.fract() == 0.0;
-        if integral && !matches!(self, VoxelData::F32(_)) {
-            let n = self.len();
-            let mut lo = f64::INFINITY;
-            let mut hi = f64::NEG_INFINITY;
-            for i in 0..n {
-                let v = self.get(i) as f64 * slope + intercept;
-                lo = lo.min(v);
-                hi = hi.max(v);
-            }
-            if n > 0 && lo >= i16::MIN as f64 && hi <= i16::MAX as f64 {
-                let out = (0..n)
-                    .map(|i| (self.get(i) as f64 * slope + intercept) as i16)
-                    .collect();
-                return VoxelData::I16(out);
+        match &self {
+            VoxelData::U8(v) => scale(v, slope, intercept),
+            VoxelData::U16(v) => scale(v, slope, intercept),
+            VoxelData::I16(v) => scale(v, slope, intercept),
+            VoxelData::F32(v) => {
+                use rayon::prelude::*;
+                VoxelData::F32(
+                    v.par_iter()
+                        .map(|&x| (x as f64 * slope + intercept) as f32)
+                        .collect(),
+                )
             }
         }
-        let out = (0..self.len())
-            .map(|i| (self.get(i) as f64 * slope + intercept) as f32)
-            .collect();
-        VoxelData::F32(out)
     }
 }
 
