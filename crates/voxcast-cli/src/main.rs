@@ -133,17 +133,39 @@ fn check_output(out: &Path, input: &str, exts: &[&str]) -> Result<()> {
                 .join(" or ")
         );
     }
-    if !input.starts_with(BUILTIN_PREFIX) {
-        if let (Ok(a), Ok(b)) = (out.canonicalize(), Path::new(input).canonicalize()) {
-            if a == b {
-                bail!("{}: refusing to overwrite the input file", out.display());
-            }
-        }
+    if !input.starts_with(BUILTIN_PREFIX) && writes_into_input(out, Path::new(input)) {
+        bail!(
+            "{}: refusing to write over or into the input {input}",
+            out.display()
+        );
     }
     if out.is_dir() {
         bail!("{}: is a folder; give an image file name", out.display());
     }
     Ok(())
+}
+
+/// True when `out` is the input file, lies inside the input folder (a slice
+/// stack would pick it up), or matches the input glob.
+fn writes_into_input(out: &Path, input: &Path) -> bool {
+    let Some(name) = out.file_name() else {
+        return false;
+    };
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let Ok(out_abs) = parent.canonicalize().map(|p| p.join(name)) else {
+        return false;
+    };
+    if let Ok(inp) = input.canonicalize() {
+        return out_abs == inp || (inp.is_dir() && out_abs.starts_with(&inp));
+    }
+    // A glob of slices: refuse an output the pattern would match.
+    let pattern = std::path::absolute(input).unwrap_or_else(|_| input.to_path_buf());
+    glob::Pattern::new(&pattern.to_string_lossy())
+        .map(|p| p.matches_path(&out_abs))
+        .unwrap_or(false)
 }
 
 fn info(a: InfoArgs) -> Result<()> {

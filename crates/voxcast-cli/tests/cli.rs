@@ -193,6 +193,16 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
         assert!(err.contains(needle), "{args:?}: `{needle}` not in: {err}");
         assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
     }
+    // A slice stack's folder or glob is an input too.
+    std::fs::create_dir(d.join("stack")).unwrap();
+    let o = voxcast(&["render", "builtin:sphere", "-o", "stack/s.png"], d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (input, out) in [("stack", "stack/new.png"), ("stack/*.png", "stack/z.png")] {
+        let o = voxcast(&["render", input, "-o", out], d);
+        assert_eq!(o.status.code(), Some(1), "{input} → {out}");
+        assert!(stderr(&o).contains("refusing"), "{}", stderr(&o));
+    }
+    std::fs::remove_dir_all(d.join("stack")).unwrap();
     // Nothing was written, the input is untouched, no temporary files remain.
     let mut names: Vec<String> = std::fs::read_dir(d)
         .unwrap()
