@@ -496,6 +496,7 @@ fn sizes_str(s: &[u64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::test_support::{err_naming, never_panics};
     use crate::testdata::data_path;
     use crate::volume::ScalarType;
     use flate2::write::ZlibEncoder;
@@ -519,16 +520,6 @@ mod tests {
         let mut e = ZlibEncoder::new(Vec::new(), Compression::default());
         e.write_all(data).unwrap();
         e.finish().unwrap()
-    }
-
-    fn err_naming(r: Result<Volume>, file: &str, field: &str) -> String {
-        let s = match r {
-            Ok(v) => panic!("expected an error naming {field}, read {:?}", v.dims()),
-            Err(e) => e.to_string(),
-        };
-        assert!(s.contains(file), "error does not name {file}: {s}");
-        assert!(s.contains(field), "error does not name {field}: {s}");
-        s
     }
 
     #[test]
@@ -788,40 +779,26 @@ mod tests {
         assert!(s.contains("gone_01.raw"), "{s}");
     }
 
-    /// Truncates `base` at every length and overwrites every byte of its
-    /// first `head` bytes with awkward characters: reading must never panic.
-    fn never_panics(dir: &Path, name: &str, base: &[u8], head: usize) {
-        let p = dir.join(name);
-        for cut in 0..base.len() {
-            std::fs::write(&p, &base[..cut]).unwrap();
-            let _ = read(&p);
-        }
-        for i in 0..head.min(base.len()) {
-            for c in [
-                b'0', b'9', b'-', b' ', b'\n', b':', b'=', b'(', b'%', b'#', 0xff,
-            ] {
-                let mut m = base.to_vec();
-                m[i] = c;
-                std::fs::write(&p, &m).unwrap();
-                let _ = read(&p);
-            }
-        }
-    }
-
     #[test]
     fn mutated_files_never_panic() {
         let dir = tempfile::tempdir().unwrap();
         let h = "ObjectType = Image\nNDims = 3\nDimSize = 4 2 2\nElementType = MET_USHORT\nElementSpacing = 1 2 3\n\
                  Offset = 1 2 3\nElementByteOrderMSB = True\nCompressedData = True\nCompressedDataSize = 20\nElementDataFile = LOCAL\n";
         let raw: Vec<u8> = (0..16u16).flat_map(|v| v.to_be_bytes()).collect();
-        never_panics(dir.path(), "m.mha", &local(h, &zlib(&raw)), h.len());
+        never_panics(read, dir.path(), "m.mha", &local(h, &zlib(&raw)), h.len());
         let h = "NDims = 2\nDimSize = 2 2\nElementType = MET_DOUBLE\nBinaryData = False\nHeaderSize = 0\nElementDataFile = LOCAL\n";
-        never_panics(dir.path(), "t.mha", &local(h, b"1 2\n3 4.5\n"), h.len());
+        never_panics(
+            read,
+            dir.path(),
+            "t.mha",
+            &local(h, b"1 2\n3 4.5\n"),
+            h.len(),
+        );
         write(dir.path(), "s1.raw", &[1, 2]);
         write(dir.path(), "s2.raw", &[3, 4]);
         let h = b"NDims = 3\nDimSize = 2 1 2\nElementType = MET_UCHAR\nHeaderSize = -1\nElementDataFile = s%d.raw 1 2 1\n";
-        never_panics(dir.path(), "p.mhd", h, h.len());
+        never_panics(read, dir.path(), "p.mhd", h, h.len());
         let h = b"NDims = 3\nDimSize = 2 1 2\nElementType = MET_CHAR\nElementDataFile = LIST 2\ns1.raw\ns2.raw\n";
-        never_panics(dir.path(), "l.mhd", h, h.len());
+        never_panics(read, dir.path(), "l.mhd", h, h.len());
     }
 }

@@ -12,6 +12,8 @@ pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
+#[cfg(test)]
+mod test_support;
 pub mod util;
 pub mod vtk;
 

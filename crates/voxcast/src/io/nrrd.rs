@@ -611,6 +611,7 @@ fn read_chunk(file: &Path, start: u64, count: usize, l: &Layout) -> Result<Voxel
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::test_support::{err_naming, never_panics};
     use crate::testdata::data_path;
     use crate::volume::ScalarType;
     use flate2::write::GzEncoder;
@@ -634,17 +635,6 @@ mod tests {
         let mut e = GzEncoder::new(Vec::new(), Compression::default());
         e.write_all(data).unwrap();
         e.finish().unwrap()
-    }
-
-    /// The error of `r`, which must name `file` and `field`.
-    fn err_naming(r: Result<Volume>, file: &str, field: &str) -> String {
-        let s = match r {
-            Ok(v) => panic!("expected an error naming {field}, read {:?}", v.dims()),
-            Err(e) => e.to_string(),
-        };
-        assert!(s.contains(file), "error does not name {file}: {s}");
-        assert!(s.contains(field), "error does not name {field}: {s}");
-        s
     }
 
     #[test]
@@ -941,35 +931,22 @@ mod tests {
         err_naming(read(&p), "list3.nhdr", "data file");
     }
 
-    /// Truncates `base` at every length and overwrites every byte of its
-    /// first `head` bytes with awkward characters: reading must never panic.
-    fn never_panics(dir: &Path, name: &str, base: &[u8], head: usize) {
-        let p = dir.join(name);
-        for cut in 0..base.len() {
-            std::fs::write(&p, &base[..cut]).unwrap();
-            let _ = read(&p);
-        }
-        for i in 0..head.min(base.len()) {
-            for c in [
-                b'0', b'9', b'-', b' ', b'\n', b':', b'=', b'(', b'%', b'#', 0xff,
-            ] {
-                let mut m = base.to_vec();
-                m[i] = c;
-                std::fs::write(&p, &m).unwrap();
-                let _ = read(&p);
-            }
-        }
-    }
-
     #[test]
     fn mutated_files_never_panic() {
         let dir = tempfile::tempdir().unwrap();
         let raw: Vec<u8> = (0..16u16).flat_map(|v| v.to_be_bytes()).collect();
         let h = "NRRD0004\ntype: ushort\ndimension: 3\nsizes: 2 2 4\nendian: big\nencoding: gzip\n\
                  space directions: (1,0,0) (0,1,0) (0,0,2)\nspace origin: (1,2,3)\nbyte skip: 0\n";
-        never_panics(dir.path(), "m.nrrd", &attached(h, &gzip(&raw)), h.len());
+        never_panics(
+            read,
+            dir.path(),
+            "m.nrrd",
+            &attached(h, &gzip(&raw)),
+            h.len(),
+        );
         let h = "NRRD0004\ntype: float\ndimension: 3\nsizes: 2 1 2\nencoding: ascii\nspacings: 1 nan 2\nline skip: 0\n";
         never_panics(
+            read,
             dir.path(),
             "t.nrrd",
             &attached(h, b"1 2.5\n-3 4\n"),
@@ -978,8 +955,8 @@ mod tests {
         write(dir.path(), "p1.raw", &[1, 2]);
         write(dir.path(), "p2.raw", &[3, 4]);
         let h = b"NRRD0004\ntype: uchar\ndimension: 2\nsizes: 2 2\nencoding: raw\ndata file: p%d.raw 1 2 1\n";
-        never_panics(dir.path(), "p.nhdr", h, h.len());
+        never_panics(read, dir.path(), "p.nhdr", h, h.len());
         let h = b"NRRD0004\ntype: uchar\ndimension: 4\nsizes: 1 2 1 2\nencoding: raw\nbyte skip: -1\ndata file: LIST 3\np1.raw\np2.raw\n";
-        never_panics(dir.path(), "l.nhdr", h, h.len());
+        never_panics(read, dir.path(), "l.nhdr", h, h.len());
     }
 }

@@ -623,6 +623,7 @@ fn unescape(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::io::test_support::{err_naming, never_panics};
     use crate::testdata::data_path;
     use std::path::PathBuf;
 
@@ -630,16 +631,6 @@ mod tests {
         let p = dir.join(name);
         std::fs::write(&p, bytes).unwrap();
         p
-    }
-
-    fn err_naming(r: Result<Volume>, file: &str, field: &str) -> String {
-        let s = match r {
-            Ok(v) => panic!("expected an error naming {field}, read {:?}", v.dims()),
-            Err(e) => e.to_string(),
-        };
-        assert!(s.contains(file), "error does not name {file}: {s}");
-        assert!(s.contains(field), "error does not name {field}: {s}");
-        s
     }
 
     fn binary(header: &str, data: &[u8], tail: &[u8]) -> Vec<u8> {
@@ -843,26 +834,6 @@ mod tests {
         }
     }
 
-    /// Truncates `base` at every length and overwrites every byte of its
-    /// first `head` bytes with awkward characters: reading must never panic.
-    fn never_panics(dir: &Path, name: &str, base: &[u8], head: usize) {
-        let p = dir.join(name);
-        for cut in 0..base.len() {
-            std::fs::write(&p, &base[..cut]).unwrap();
-            let _ = read(&p);
-        }
-        for i in 0..head.min(base.len()) {
-            for c in [
-                b'0', b'9', b'-', b' ', b'\n', b':', b'=', b'(', b'%', b'#', 0xff,
-            ] {
-                let mut m = base.to_vec();
-                m[i] = c;
-                std::fs::write(&p, &m).unwrap();
-                let _ = read(&p);
-            }
-        }
-    }
-
     #[test]
     fn mutated_files_never_panic() {
         let dir = tempfile::tempdir().unwrap();
@@ -879,10 +850,10 @@ mod tests {
             .flat_map(|v| v.to_be_bytes())
             .collect();
         let base = binary(&h, &data, &tail);
-        never_panics(dir.path(), "m.vtk", &base, base.len());
+        never_panics(read, dir.path(), "m.vtk", &base, base.len());
         let t = "# vtk DataFile Version 2.0\nt\nASCII\nDATASET STRUCTURED_POINTS\nDIMENSIONS 2 1 2\nPOINT_DATA 4\n\
                  SCALARS s unsigned_short\nLOOKUP_TABLE default\n1 2 3 4\nTEXTURE_COORDINATES t 2 float\n1 2 3 4 5 6 7 8\n\
                  LOOKUP_TABLE l 1\n0 0 0 1\nTENSORS6 x double\n";
-        never_panics(dir.path(), "t.vtk", t.as_bytes(), t.len());
+        never_panics(read, dir.path(), "t.vtk", t.as_bytes(), t.len());
     }
 }
