@@ -420,7 +420,10 @@ impl Lut {
     #[inline(always)]
     pub fn index(v: f32) -> Option<usize> {
         if v >= 0.0 {
-            Some(((v * (LUT_SIZE - 1) as f32 + 0.5) as usize).min(LUT_SIZE - 1))
+            let x = v.min(1.0) * (LUT_SIZE - 1) as f32 + 0.5;
+            // SAFETY: v ≥ 0 (so not NaN) and min(1) bounds it, so x is in
+            // [0.5, LUT_SIZE − 0.5]: truncation is exact and in range.
+            Some(unsafe { x.to_int_unchecked::<u32>() } as usize)
         } else {
             None
         }

@@ -65,6 +65,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// [`Volume`] guarantees it).
     pub fn new(data: &'a [T], dims: [usize; 3], lo: f32, hi: f32) -> Self {
         assert_eq!(data.len(), dims[0] * dims[1] * dims[2]);
+        assert!(dims.iter().all(|&d| d >= 1 && d < (1 << 31)));
         let width = if hi > lo { hi - lo } else { 1.0 };
         let sx = 1;
         let sy = dims[0];
@@ -103,11 +104,19 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// positions outside the grid are clamped to its boundary.
     #[inline(always)]
     pub fn sample(&self, p: Vec3) -> f32 {
-        let p = p.clamp(Vec3::ZERO, self.max);
-        // `as usize` of a NaN is 0, so a NaN position still indexes in bounds.
-        let ix = (p.x as usize).min(self.last[0]);
-        let iy = (p.y as usize).min(self.last[1]);
-        let iz = (p.z as usize).min(self.last[2]);
+        // `max` before `min`: f32::max returns the non-NaN operand, so a NaN
+        // coordinate becomes 0 and every coordinate ends up in [0, dims − 1].
+        let p = p.max(Vec3::ZERO).min(self.max);
+        // SAFETY: each coordinate is finite, ≥ 0 and ≤ dims − 1 < 2³¹ (see
+        // above), so the unchecked conversion is exact truncation. It saves
+        // the saturation logic of `as`, a third of this function's cost.
+        let (ix, iy, iz) = unsafe {
+            (
+                (p.x.to_int_unchecked::<i32>() as usize).min(self.last[0]),
+                (p.y.to_int_unchecked::<i32>() as usize).min(self.last[1]),
+                (p.z.to_int_unchecked::<i32>() as usize).min(self.last[2]),
+            )
+        };
         let fx = p.x - ix as f32;
         let fy = p.y - iy as f32;
         let fz = p.z - iz as f32;
