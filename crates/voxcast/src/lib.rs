@@ -6,6 +6,7 @@
 //! ([`render`]) turns it into an [`Image`] and [`RenderStats`]; images are
 //! written as PNG/EXR and compared with [`metrics`].
 
+pub mod bench;
 pub mod builtin;
 pub mod camera;
 pub mod error;

@@ -3,11 +3,13 @@
 //! type and the optical model, so the per-sample path has no dynamic
 //! dispatch, no allocation and no locks.
 
+pub mod blocks;
 pub mod march;
 pub mod optics;
 pub mod shading;
 pub mod stats;
 
+pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
 pub use stats::RenderStats;
 
@@ -25,13 +27,106 @@ use shading::BlinnPhong;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
-/// Sampling method along the ray.
+/// Where samples go along the ray (DESIGN.md axis 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// Equal steps of `step` voxels (S4).
     #[default]
     Uniform,
+    /// S0: a step per block from the frequency `F = k·|MN|/|MS|`, with `k`
+    /// the largest partial derivative at the block's midpoint.
+    Adaptive,
+    /// S0's frequency with `k` the block's largest gradient magnitude instead
+    /// of the midpoint's (the midpoint can miss a thin feature).
+    AdaptiveMax,
+    /// Zeng et al. 2018: the step depends on the value range the current
+    /// sample falls into.
+    Threshold,
+}
+
+impl Method {
+    pub const ALL: [Method; 4] = [
+        Method::Uniform,
+        Method::Adaptive,
+        Method::AdaptiveMax,
+        Method::Threshold,
+    ];
+
+    /// The name used on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Uniform => "uniform",
+            Method::Adaptive => "adaptive",
+            Method::AdaptiveMax => "adaptive-max",
+            Method::Threshold => "threshold",
+        }
+    }
+
+    /// Parses a method name.
+    pub fn parse(s: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
+/// A method as written on the command line: a marcher name optionally
+/// followed by `+grouped` (S0's grouped interpolation), e.g.
+/// `adaptive+grouped`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MethodSpec {
+    pub method: Method,
+    pub grouped: bool,
+}
+
+impl MethodSpec {
+    /// Parses `NAME[+grouped]`.
+    pub fn parse(s: &str) -> Result<MethodSpec> {
+        let mut parts = s.trim().split('+');
+        let name = parts.next().unwrap_or("");
+        let method = Method::parse(name).ok_or_else(|| {
+            let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+            Error::invalid(format!(
+                "method `{s}`: unknown sampling method `{name}` (known: {}; add +grouped for grouped interpolation)",
+                names.join(", ")
+            ))
+        })?;
+        let mut grouped = false;
+        for p in parts {
+            match p {
+                "grouped" => grouped = true,
+                _ => {
+                    return Err(Error::invalid(format!(
+                        "method `{s}`: unknown modifier `+{p}` (known: +grouped)"
+                    )))
+                }
+            }
+        }
+        Ok(MethodSpec { method, grouped })
+    }
+
+    /// Sets the method and modifiers of `params`.
+    pub fn apply(&self, params: &mut RenderParams) {
+        params.method = self.method;
+        params.grouped = self.grouped;
+    }
+
+    /// Reads the spec back from `params`.
+    pub fn of(params: &RenderParams) -> MethodSpec {
+        MethodSpec {
+            method: params.method,
+            grouped: params.grouped,
+        }
+    }
+}
+
+impl std::fmt::Display for MethodSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.method.name())?;
+        if self.grouped {
+            f.write_str("+grouped")?;
+        }
+        Ok(())
+    }
 }
 
 /// Compositing order.
@@ -64,9 +159,16 @@ pub struct RenderParams {
     pub shading: bool,
     /// Background colour, sRGB 0…1.
     pub background: [f32; 3],
-    /// Seed for the stochastic methods (the same scene and seed give the
-    /// same image).
+    /// Seed for the stochastic methods and jitter (the same scene and seed
+    /// give the same image).
     pub seed: u64,
+    /// S0 grouped interpolation: farther samples reuse the value of the
+    /// first sample of their group of 2 or 3.
+    pub grouped: bool,
+    /// Empty-space skipping over blocks whose values are all transparent.
+    pub skip_empty: bool,
+    /// A random start offset in [0, Δ) per pixel, against wood-grain artefacts.
+    pub jitter: bool,
 }
 
 impl Default for RenderParams {
@@ -82,6 +184,9 @@ impl Default for RenderParams {
             shading: true,
             background: [0.0, 0.0, 0.0],
             seed: 0,
+            grouped: false,
+            skip_empty: true,
+            jitter: false,
         }
     }
 }
@@ -118,7 +223,8 @@ impl RenderParams {
 const TILE: u32 = 16;
 
 /// Renders `volume` with `tf` over the data window `window`, seen by
-/// `camera`. `progress(done, total)` is called after each tile.
+/// `camera`. `progress(done, total)` is called after each tile. For repeated
+/// renders of one volume, make a [`Renderer`] once instead.
 pub fn render(
     volume: &Volume,
     tf: &TransferFunction,
@@ -127,39 +233,87 @@ pub fn render(
     params: &RenderParams,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<(Image, RenderStats)> {
-    params.validate()?;
-    if !(window[0].is_finite() && window[1].is_finite() && window[0] < window[1]) {
-        // A constant volume has min == max: widen so it still normalises.
+    Renderer::new(volume, window)?.render(tf, camera, params, progress)
+}
+
+/// A volume ready for rendering over one data window: the derived
+/// structures (the block grid) are built once and reused by every render.
+pub struct Renderer<'v> {
+    volume: &'v Volume,
+    window: [f32; 2],
+    blocks: BlockGrid,
+}
+
+impl<'v> Renderer<'v> {
+    /// Prepares `volume` for rendering with data values `window[0]…window[1]`
+    /// mapped to 0…1. A window of zero width (a constant volume) is widened
+    /// by ±0.5 so it still normalises.
+    pub fn new(volume: &'v Volume, window: [f32; 2]) -> Result<Renderer<'v>> {
+        let mut window = window;
         if window[0].is_finite() && window[0] == window[1] {
-            return render(
-                volume,
-                tf,
-                [window[0] - 0.5, window[0] + 0.5],
-                camera,
-                params,
-                progress,
-            );
+            window = [window[0] - 0.5, window[0] + 0.5];
         }
-        return Err(Error::invalid(format!(
-            "window [{}, {}] must have lo < hi",
-            window[0], window[1]
-        )));
+        if !(window[0].is_finite() && window[1].is_finite() && window[0] < window[1]) {
+            return Err(Error::invalid(format!(
+                "window [{}, {}] must have lo < hi",
+                window[0], window[1]
+            )));
+        }
+        let blocks = volume.visit(
+            window[0],
+            window[1],
+            blocks::BuildBlocks {
+                size: blocks::DEFAULT_BLOCK,
+            },
+        );
+        Ok(Renderer {
+            volume,
+            window,
+            blocks,
+        })
     }
-    let start = Instant::now();
-    let (lo, hi) = volume.world_bounds();
-    let cam = Camera::fit(camera, lo, hi, params.width, params.height);
-    let unit = volume.spacing().min_element();
-    let job = Job {
-        volume,
-        lut: Lut::new(tf, params.step),
-        cam,
-        params,
-        unit,
-        progress,
-    };
-    let (image, mut stats) = volume.visit(window[0], window[1], job);
-    stats.seconds = start.elapsed().as_secs_f64();
-    Ok((image, stats))
+
+    /// The volume.
+    pub fn volume(&self) -> &Volume {
+        self.volume
+    }
+
+    /// The data window in use.
+    pub fn window(&self) -> [f32; 2] {
+        self.window
+    }
+
+    /// The block grid.
+    pub fn blocks(&self) -> &BlockGrid {
+        &self.blocks
+    }
+
+    /// Renders with `tf`, seen by `camera`.
+    pub fn render(
+        &self,
+        tf: &TransferFunction,
+        camera: &CameraParams,
+        params: &RenderParams,
+        progress: &(dyn Fn(usize, usize) + Sync),
+    ) -> Result<(Image, RenderStats)> {
+        params.validate()?;
+        let start = Instant::now();
+        let volume = self.volume;
+        let (lo, hi) = volume.world_bounds();
+        let cam = Camera::fit(camera, lo, hi, params.width, params.height);
+        let unit = volume.spacing().min_element();
+        let job = Job {
+            volume,
+            lut: Lut::new(tf, params.step),
+            cam,
+            params,
+            unit,
+            progress,
+        };
+        let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
+        stats.seconds = start.elapsed().as_secs_f64();
+        Ok((image, stats))
+    }
 }
 
 struct Job<'a> {

@@ -1,0 +1,1 @@
+//! `voxcast bench`: methods compared on one scene (being written).
