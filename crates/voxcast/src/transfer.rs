@@ -440,6 +440,16 @@ impl Lut {
     pub fn sigma(&self, i: usize) -> f32 {
         self.sigma[i]
     }
+
+    /// The opacity of every entry for a step of `ratio` unit lengths, for
+    /// marchers that take steps of several fixed lengths.
+    pub fn alphas(&self, ratio: f32) -> Box<[f32; LUT_SIZE]> {
+        let mut a = Box::new([0.0f32; LUT_SIZE]);
+        for (a, s) in a.iter_mut().zip(self.sigma.iter()) {
+            *a = 1.0 - (-s * ratio).exp();
+        }
+        a
+    }
 }
 
 #[cfg(test)]

@@ -1,11 +1,19 @@
 //! Where samples go along a ray (the marcher; DESIGN.md axis 1).
 //!
-//! A marcher yields sample positions as `(t, Δs)`: the ray parameter of the
-//! sample (world units from the ray origin) and the length of ray it stands
-//! for. The compositor corrects opacity by `Δs`, so marchers with varying
-//! steps change the cost, not the picture.
+//! Every marcher walks the ray through the block grid with a 3D DDA
+//! ([`BlockWalker`]), which plays the role of Open VKL's interval iterator:
+//! it yields the stretch of ray inside each block, so empty-space skipping
+//! and per-block step selection live in one place.
+//!
+//! Sample positions lie on global grids `t₀ + n·s` (`t₀` the ray's entry plus
+//! the jitter offset, `s` the block's step), so a sample's position depends
+//! only on the block it lies in — never on which blocks before it were
+//! skipped. Skipping empty blocks therefore changes the cost, not the
+//! picture; and a marcher whose step is forced constant reproduces `uniform`
+//! exactly.
 
 use glam::Vec3;
+use serde::{Deserialize, Serialize};
 
 /// Entry and exit parameters of a ray with an axis-aligned box, or `None`
 /// when it misses. `inv_dir` is `1 / dir` per component (±∞ for 0).
@@ -22,86 +30,212 @@ pub fn intersect_box(origin: Vec3, inv_dir: Vec3, lo: Vec3, hi: Vec3) -> Option<
     (exit > enter).then_some((enter, exit))
 }
 
-/// A stream of samples along one ray.
-pub trait Marcher {
-    /// The next sample `(t, Δs)`, front to back.
-    fn next_sample(&mut self) -> Option<(f32, f32)>;
+/// A 3D DDA (Amanatides & Woo 1987) over blocks of `size` cells: yields
+/// `(t_enter, t_exit, block_index)` for every block the ray crosses between
+/// `t_in` and `t_out`, front to back, with consecutive stretches sharing
+/// their boundary value exactly.
+pub struct BlockWalker {
+    t: f32,
+    t_out: f32,
+    block: [i64; 3],
+    counts: [i64; 3],
+    step: [i64; 3],
+    t_max: [f32; 3],
+    t_delta: [f32; 3],
 }
 
-/// Equal steps (S4): `t = t_enter + n·Δ`, `n = 0, 1, …` while inside; the last
-/// sample stands for the remaining stretch only, so a ray through a
-/// homogeneous medium integrates exactly its length.
-#[derive(Clone, Copy, Debug)]
-pub struct Uniform {
-    t0: f32,
-    t_exit: f32,
-    step: f32,
-    n: u32,
-    count: u32,
-}
-
-impl Uniform {
-    /// Samples from `t_enter` to `t_exit` at spacing `step` (> 0).
-    #[inline]
-    pub fn new(t_enter: f32, t_exit: f32, step: f32) -> Uniform {
-        let len = (t_exit - t_enter).max(0.0);
-        let count = (len / step).ceil() as u32;
-        Uniform {
-            t0: t_enter,
-            t_exit,
+impl BlockWalker {
+    /// Starts at `t_in` on the ray `o + d·t` (voxel coordinates).
+    pub fn new(
+        o: Vec3,
+        d: Vec3,
+        t_in: f32,
+        t_out: f32,
+        size: usize,
+        counts: [usize; 3],
+    ) -> BlockWalker {
+        let b = size as f32;
+        let p = o + d * t_in;
+        let mut block = [0i64; 3];
+        let mut step = [0i64; 3];
+        let mut t_max = [f32::INFINITY; 3];
+        let mut t_delta = [f32::INFINITY; 3];
+        for a in 0..3 {
+            let n = counts[a] as i64;
+            let q = p[a] / b;
+            // On a boundary, a ray going down belongs to the block below.
+            let mut c = if d[a] < 0.0 {
+                q.ceil() as i64 - 1
+            } else {
+                q.floor() as i64
+            };
+            c = c.clamp(0, n - 1);
+            block[a] = c;
+            if d[a] > 0.0 {
+                step[a] = 1;
+                t_max[a] = ((c + 1) as f32 * b - o[a]) / d[a];
+                t_delta[a] = b / d[a];
+            } else if d[a] < 0.0 {
+                step[a] = -1;
+                t_max[a] = (c as f32 * b - o[a]) / d[a];
+                t_delta[a] = -b / d[a];
+            }
+        }
+        BlockWalker {
+            t: t_in,
+            t_out,
+            block,
+            counts: counts.map(|c| c as i64),
             step,
-            n: 0,
-            count,
+            t_max,
+            t_delta,
         }
     }
-
-    /// Number of samples this ray will take.
-    pub fn len(&self) -> u32 {
-        self.count
-    }
-
-    /// True when the ray takes no sample.
-    pub fn is_empty(&self) -> bool {
-        self.count == 0
-    }
 }
 
-impl Marcher for Uniform {
-    #[inline(always)]
-    fn next_sample(&mut self) -> Option<(f32, f32)> {
-        if self.n >= self.count {
+impl Iterator for BlockWalker {
+    type Item = (f32, f32, usize);
+
+    #[inline]
+    fn next(&mut self) -> Option<(f32, f32, usize)> {
+        if self.t >= self.t_out {
             return None;
         }
-        let t = self.t0 + self.n as f32 * self.step;
-        self.n += 1;
-        let ds = if self.n == self.count {
-            (self.t_exit - t).clamp(0.0, self.step)
+        let a = if self.t_max[0] <= self.t_max[1] && self.t_max[0] <= self.t_max[2] {
+            0
+        } else if self.t_max[1] <= self.t_max[2] {
+            1
         } else {
-            self.step
+            2
         };
-        Some((t, ds))
+        let t_exit = self.t_max[a].min(self.t_out).max(self.t);
+        let [bx, by, bz] = self.block;
+        let index = (bx + self.counts[0] * (by + self.counts[1] * bz)) as usize;
+        let enter = self.t;
+        self.t = t_exit;
+        self.t_max[a] += self.t_delta[a];
+        self.block[a] += self.step[a];
+        if self.block[a] < 0 || self.block[a] >= self.counts[a] {
+            // Left the grid: this is the last stretch.
+            self.t = self.t_out;
+        }
+        Some((enter, t_exit, index))
     }
+}
+
+/// Parameters of the S0 adaptive marchers.
+///
+/// Per block crossed, the frequency is `F = k·|MN|/|MS|` (S0 eqs. 1–6): `k`
+/// the largest partial derivative of the normalised field per voxel (at the
+/// block's midpoint `S`, or the block's maximum for `adaptive-max`), `M` the
+/// eye, `N` the ray's exit. The step is `step · k_ref / F`, rounded to a
+/// power-of-two multiple of `step` and clamped to `[min_step, max_step]`
+/// (voxels; rounded to powers of two times `step` too). Blocks that the
+/// transfer function makes transparent take `max_step`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct AdaptiveParams {
+    /// The `k·|MN|/|MS|` at which the base step is used.
+    pub k_ref: f32,
+    /// Finest step in voxels (default: the base step).
+    pub min_step: Option<f32>,
+    /// Coarsest step in voxels (default: 4 × the base step).
+    pub max_step: Option<f32>,
+}
+
+impl Default for AdaptiveParams {
+    fn default() -> Self {
+        AdaptiveParams {
+            k_ref: 0.05,
+            min_step: None,
+            max_step: None,
+        }
+    }
+}
+
+impl AdaptiveParams {
+    /// The range of power-of-two levels `j` (step = base · 2^j) allowed.
+    pub fn levels(&self, base: f32) -> (i32, i32) {
+        let lvl = |s: f32| (s / base).log2().round().clamp(-6.0, 6.0) as i32;
+        let lo = self.min_step.map(lvl).unwrap_or(0);
+        let hi = self.max_step.map(lvl).unwrap_or(2);
+        (lo.min(hi), hi.max(lo))
+    }
+
+    /// Level for frequency `f` within `[lo, hi]`.
+    #[inline]
+    pub fn level(&self, f: f32, lo: i32, hi: i32) -> i32 {
+        if f > 0.0 {
+            ((self.k_ref / f).log2().round() as i32).clamp(lo, hi)
+        } else {
+            hi
+        }
+    }
+}
+
+/// Parameters of the threshold-range marcher (Zeng et al. 2018, S0's
+/// baseline): the value of the current sample (normalised, 0…1) falls into
+/// one of three ranges split at `bounds`, and the step to the next sample is
+/// that range's entry in `steps` (voxels).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct ThresholdParams {
+    /// Range boundaries `[a, b]`: `[0, a)`, `[a, b)`, `[b, 1]`.
+    pub bounds: [f32; 2],
+    /// Steps in voxels for the three ranges.
+    pub steps: [f32; 3],
+}
+
+impl Default for ThresholdParams {
+    fn default() -> Self {
+        ThresholdParams {
+            bounds: [0.1, 0.3],
+            steps: [2.0, 1.0, 0.5],
+        }
+    }
+}
+
+impl ThresholdParams {
+    /// Index of the range value `v` falls into.
+    #[inline(always)]
+    pub fn range(&self, v: f32) -> usize {
+        if v < self.bounds[0] {
+            0
+        } else if v < self.bounds[1] {
+            1
+        } else {
+            2
+        }
+    }
+}
+
+/// S0 grouped interpolation: the group size at distance `t` from the eye on
+/// a ray leaving the volume at `t_exit` — 1 in the nearest third, 2 in the
+/// middle third, 3 in the farthest.
+#[inline(always)]
+pub fn group_size(t: f32, t_exit: f32) -> u32 {
+    if t <= t_exit / 3.0 {
+        1
+    } else if t <= t_exit * (2.0 / 3.0) {
+        2
+    } else {
+        3
+    }
+}
+
+/// A uniform random number in [0, 1) from a seed and a pixel (SplitMix64).
+#[inline]
+pub fn pixel_random(seed: u64, x: u32, y: u32) -> f32 {
+    let mut z = seed ^ ((x as u64) << 32 | y as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^= z >> 31;
+    (z >> 40) as f32 / (1u64 << 24) as f32
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn uniform_covers_the_ray_exactly() {
-        let mut m = Uniform::new(2.0, 7.3, 0.5);
-        let mut total = 0.0;
-        let mut last_t = -1.0;
-        let mut n = 0;
-        while let Some((t, ds)) = m.next_sample() {
-            assert!(t > last_t);
-            last_t = t;
-            total += ds;
-            n += 1;
-        }
-        assert_eq!(n, 11);
-        assert!((total - 5.3).abs() < 1e-5);
-    }
 
     #[test]
     fn box_hits_and_misses() {
@@ -110,10 +244,78 @@ mod tests {
         let (a, b) = intersect_box(Vec3::new(5.0, -5.0, 5.0), inv(Vec3::Y), lo, hi).unwrap();
         assert!((a - 5.0).abs() < 1e-6 && (b - 15.0).abs() < 1e-6);
         assert!(intersect_box(Vec3::new(15.0, -5.0, 5.0), inv(Vec3::Y), lo, hi).is_none());
-        // Starting inside: enter at 0.
         let (a, _) = intersect_box(Vec3::splat(5.0), inv(Vec3::X), lo, hi).unwrap();
         assert_eq!(a, 0.0);
-        // Pointing away.
         assert!(intersect_box(Vec3::new(5.0, -5.0, 5.0), inv(-Vec3::Y), lo, hi).is_none());
+    }
+
+    #[test]
+    fn walker_visits_the_blocks_in_order_and_covers_the_ray() {
+        // 4×3×2 blocks of 8 cells; a diagonal ray through the whole grid.
+        let counts = [4, 3, 2];
+        let hi = Vec3::new(31.0, 23.0, 15.0);
+        for (o, d) in [
+            (Vec3::new(-1.0, -1.0, -1.0), Vec3::new(1.0, 0.7, 0.45)),
+            (Vec3::new(40.0, 30.0, 20.0), Vec3::new(-1.0, -0.6, -0.5)),
+            (Vec3::new(3.0, -5.0, 8.0), Vec3::new(0.0, 1.0, 0.0)),
+        ] {
+            let (t_in, t_out) = intersect_box(o, Vec3::ONE / d, Vec3::ZERO, hi).unwrap();
+            let mut t = t_in;
+            let mut n = 0;
+            for (a, b, idx) in BlockWalker::new(o, d, t_in, t_out, 8, counts) {
+                assert_eq!(a, t, "stretches must be contiguous");
+                assert!(b >= a);
+                t = b;
+                n += 1;
+                if b - a < 1e-3 {
+                    // Corners crossed at once: a zero-length stretch.
+                    continue;
+                }
+                // The midpoint lies in the block reported.
+                let p = o + d * ((a + b) * 0.5);
+                let c = [0, 1, 2]
+                    .map(|k| ((p[k] / 8.0).floor() as i64).clamp(0, counts[k] as i64 - 1) as usize);
+                assert_eq!(idx, c[0] + 4 * (c[1] + 3 * c[2]), "at {p}");
+            }
+            assert_eq!(t, t_out);
+            assert!(n >= 2);
+        }
+    }
+
+    #[test]
+    fn groups_by_thirds() {
+        assert_eq!(group_size(1.0, 9.0), 1);
+        assert_eq!(group_size(3.0, 9.0), 1);
+        assert_eq!(group_size(3.1, 9.0), 2);
+        assert_eq!(group_size(6.5, 9.0), 3);
+    }
+
+    #[test]
+    fn adaptive_levels() {
+        let p = AdaptiveParams::default();
+        let (lo, hi) = p.levels(0.5);
+        assert_eq!((lo, hi), (0, 2));
+        assert_eq!(p.level(0.0, lo, hi), 2);
+        assert_eq!(p.level(10.0, lo, hi), 0);
+        assert_eq!(p.level(0.025, lo, hi), 1);
+        let fixed = AdaptiveParams {
+            min_step: Some(0.5),
+            max_step: Some(0.5),
+            ..p
+        };
+        assert_eq!(fixed.levels(0.5), (0, 0));
+    }
+
+    #[test]
+    fn jitter_is_uniform_and_deterministic() {
+        let mut sum = 0.0;
+        for i in 0..10_000 {
+            let u = pixel_random(7, i % 100, i / 100);
+            assert!((0.0..1.0).contains(&u));
+            sum += u as f64;
+        }
+        assert!((sum / 10_000.0 - 0.5).abs() < 0.01);
+        assert_eq!(pixel_random(1, 2, 3), pixel_random(1, 2, 3));
+        assert_ne!(pixel_random(1, 2, 3), pixel_random(2, 2, 3));
     }
 }

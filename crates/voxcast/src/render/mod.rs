@@ -6,6 +6,7 @@
 pub mod blocks;
 pub mod march;
 pub mod optics;
+mod ray;
 pub mod shading;
 pub mod stats;
 
@@ -18,9 +19,10 @@ use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
 use crate::volume::{Grid, GridVisitor, Volume, Voxel};
-use glam::{Vec3, Vec4};
-use march::{intersect_box, Marcher, Uniform};
-use optics::{over_back, over_front, AbsorptionOnly, EmissionAbsorption, EmissionOnly, Optics};
+use glam::Vec3;
+pub use march::{AdaptiveParams, ThresholdParams};
+use optics::{AbsorptionOnly, EmissionAbsorption, EmissionOnly, Optics};
+use ray::RayCtx;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use shading::BlinnPhong;
@@ -169,6 +171,10 @@ pub struct RenderParams {
     pub skip_empty: bool,
     /// A random start offset in [0, Δ) per pixel, against wood-grain artefacts.
     pub jitter: bool,
+    /// Parameters of `adaptive` and `adaptive-max`.
+    pub adaptive: AdaptiveParams,
+    /// Parameters of `threshold`.
+    pub threshold: ThresholdParams,
 }
 
 impl Default for RenderParams {
@@ -187,6 +193,8 @@ impl Default for RenderParams {
             grouped: false,
             skip_empty: true,
             jitter: false,
+            adaptive: AdaptiveParams::default(),
+            threshold: ThresholdParams::default(),
         }
     }
 }
@@ -211,6 +219,26 @@ impl RenderParams {
                 "ert {}: the termination threshold must be in (0, 1] (1 disables it)",
                 self.ert
             )));
+        }
+        let t = &self.threshold;
+        if t.steps
+            .iter()
+            .any(|s| !(s.is_finite() && *s >= 1e-3 && *s <= 64.0))
+            || t.bounds.iter().any(|b| b.is_nan())
+            || t.bounds[0] > t.bounds[1]
+        {
+            return Err(Error::invalid(format!(
+                "threshold: steps {:?} must be 0.001…64 voxels and bounds {:?} ordered",
+                t.steps, t.bounds
+            )));
+        }
+        let a = &self.adaptive;
+        let bad =
+            |s: Option<f32>| s.is_some_and(|s| !(s.is_finite() && (1e-3..=64.0).contains(&s)));
+        if !(a.k_ref.is_finite() && a.k_ref > 0.0) || bad(a.min_step) || bad(a.max_step) {
+            return Err(Error::invalid(
+                "adaptive: k_ref must be positive and min/max steps 0.001…64 voxels",
+            ));
         }
         if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
             return Err(Error::invalid("background: each component must be in 0…1"));
@@ -309,6 +337,8 @@ impl<'v> Renderer<'v> {
             params,
             unit,
             progress,
+            blocks: &self.blocks,
+            empty: self.blocks.empty_flags(tf),
         };
         let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
         stats.seconds = start.elapsed().as_secs_f64();
@@ -318,6 +348,8 @@ impl<'v> Renderer<'v> {
 
 struct Job<'a> {
     volume: &'a Volume,
+    blocks: &'a BlockGrid,
+    empty: Vec<bool>,
     lut: Lut,
     cam: Camera,
     params: &'a RenderParams,
@@ -336,22 +368,6 @@ impl GridVisitor for Job<'_> {
     }
 }
 
-/// Per-ray constants.
-struct RayCtx<'g, 'l, T> {
-    grid: &'g Grid<'g, T>,
-    lut: &'l Lut,
-    /// Box through the voxel centres, in voxel coordinates.
-    box_lo: Vec3,
-    box_hi: Vec3,
-    origin_w: Vec3,
-    inv_spacing: Vec3,
-    step: f32,
-    unit: f32,
-    ert: f32,
-    back_to_front: bool,
-    shading: Option<BlinnPhong>,
-}
-
 impl Job<'_> {
     fn run<T: Voxel, O: Optics>(&self, grid: &Grid<'_, T>) -> (Image, RenderStats) {
         let (w, h) = (self.params.width, self.params.height);
@@ -365,6 +381,18 @@ impl Job<'_> {
             }
         };
         let (ax, ay, az) = (axis(dims[0]), axis(dims[1]), axis(dims[2]));
+        let p = self.params;
+        let (level_lo, level_hi) = p.adaptive.levels(p.step);
+        let levels: Vec<f32> = (level_lo..=level_hi)
+            .map(|j| p.step * 2f32.powi(j))
+            .collect();
+        let level_alphas: Vec<_> = levels.iter().map(|&r| self.lut.alphas(r)).collect();
+        let threshold_alphas: Vec<_> = p
+            .threshold
+            .steps
+            .iter()
+            .map(|&r| self.lut.alphas(r))
+            .collect();
         let ctx = RayCtx {
             grid,
             lut: &self.lut,
@@ -372,11 +400,27 @@ impl Job<'_> {
             box_hi: Vec3::new(ax.1, ay.1, az.1),
             origin_w: self.volume.origin(),
             inv_spacing: Vec3::ONE / self.volume.spacing(),
-            step: self.params.step * self.unit,
+            step: p.step * self.unit,
             unit: self.unit,
-            ert: self.params.ert,
-            back_to_front: self.params.order == Order::BackToFront,
-            shading: self.params.shading.then(BlinnPhong::default),
+            ert: p.ert,
+            back_to_front: p.order == Order::BackToFront,
+            shading: p.shading.then(BlinnPhong::default),
+            method: p.method,
+            grouped: p.grouped,
+            jitter: p.jitter.then_some(p.seed),
+            skip_empty: p.skip_empty,
+            block_size: self.blocks.size,
+            block_counts: self.blocks.counts,
+            empty: &self.empty,
+            max_gradient: &self.blocks.max_gradient,
+            level_lo,
+            level_hi,
+            k_ref: p.adaptive.k_ref,
+            level_steps: &levels.iter().map(|s| s * self.unit).collect::<Vec<_>>(),
+            level_alphas: &level_alphas,
+            threshold: p.threshold,
+            threshold_steps: p.threshold.steps.map(|s| s * self.unit),
+            threshold_alphas: &threshold_alphas,
         };
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);
@@ -393,7 +437,7 @@ impl Job<'_> {
                 for y in ty..(ty + TILE).min(h) {
                     for x in tx..(tx + TILE).min(w) {
                         let (o, d) = self.cam.ray(x, y);
-                        let c = trace::<T, O>(&ctx, o, d, &mut stats, &mut scratch);
+                        let c = ray::trace::<T, O>(&ctx, o, d, (x, y), &mut stats, &mut scratch);
                         let rgb = c.truncate() + bg * (1.0 - c.w);
                         px.push([rgb.x, rgb.y, rgb.z, c.w]);
                     }
@@ -415,73 +459,4 @@ impl Job<'_> {
         }
         (image, stats)
     }
-}
-
-/// One ray: returns premultiplied linear colour and opacity (before the
-/// background).
-#[inline]
-fn trace<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, '_, T>,
-    origin: Vec3,
-    dir: Vec3,
-    stats: &mut RenderStats,
-    scratch: &mut Vec<(Vec3, f32)>,
-) -> Vec4 {
-    stats.rays += 1;
-    // Ray in voxel coordinates; t stays in world units.
-    let o = (origin - ctx.origin_w) * ctx.inv_spacing;
-    let d = dir * ctx.inv_spacing;
-    let Some((t_in, t_out)) = intersect_box(o, Vec3::ONE / d, ctx.box_lo, ctx.box_hi) else {
-        return Vec4::ZERO;
-    };
-    stats.rays_hit += 1;
-    let mut marcher = Uniform::new(t_in, t_out, ctx.step);
-    let mut acc_c = Vec3::ZERO;
-    let mut acc_a = 0.0f32;
-    // Counted in locals: the loop keeps them in registers.
-    let (mut samples, mut shaded) = (0u64, 0u64);
-    scratch.clear();
-    let view = -dir;
-    while let Some((t, ds)) = marcher.next_sample() {
-        samples += 1;
-        let p = o + d * t;
-        let v = ctx.grid.sample(p);
-        let Some(i) = Lut::index(v) else { continue };
-        let e = ctx.lut.entry(i);
-        let alpha = if ds == ctx.step {
-            e[3]
-        } else {
-            // Opacity correction for a partial step (S4).
-            1.0 - (-ctx.lut.sigma(i) * ds / ctx.unit).exp()
-        };
-        if alpha <= 0.0 {
-            continue;
-        }
-        let mut rgb = Vec3::new(e[0], e[1], e[2]);
-        if let Some(sh) = &ctx.shading {
-            let g = ctx.grid.gradient(p);
-            shaded += 1;
-            rgb = sh.shade(rgb, g, ctx.inv_spacing, view);
-        }
-        let (em, ab) = O::contribution(rgb, alpha);
-        if ctx.back_to_front {
-            scratch.push((em, ab));
-        } else {
-            over_front(&mut acc_c, &mut acc_a, em, ab);
-            if acc_a >= ctx.ert && ctx.ert < 1.0 {
-                stats.early_terminated += 1;
-                break;
-            }
-        }
-    }
-    stats.samples += samples;
-    // Every sample reconstructs its value once (no reuse in this marcher).
-    stats.interpolations += samples;
-    stats.gradient_interpolations += 6 * shaded;
-    if ctx.back_to_front {
-        for &(em, ab) in scratch.iter().rev() {
-            over_back(&mut acc_c, &mut acc_a, em, ab);
-        }
-    }
-    acc_c.extend(acc_a)
 }

@@ -65,7 +65,7 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// [`Volume`] guarantees it).
     pub fn new(data: &'a [T], dims: [usize; 3], lo: f32, hi: f32) -> Self {
         assert_eq!(data.len(), dims[0] * dims[1] * dims[2]);
-        assert!(dims.iter().all(|&d| d >= 1 && d < (1 << 31)));
+        assert!(dims.iter().all(|d| (1..(1 << 31)).contains(d)));
         let width = if hi > lo { hi - lo } else { 1.0 };
         let sx = 1;
         let sy = dims[0];
