@@ -16,7 +16,7 @@ use rayon::prelude::*;
 /// Default block edge in cells.
 pub const DEFAULT_BLOCK: usize = 8;
 
-/// Per-block value range and gradient bound.
+/// Per-block value range.
 #[derive(Clone, Debug)]
 pub struct BlockGrid {
     /// Block edge in cells.
@@ -25,9 +25,6 @@ pub struct BlockGrid {
     pub counts: [usize; 3],
     /// Normalised `[min, max]` per block (x fastest).
     pub range: Vec<[f32; 2]>,
-    /// Largest central-difference gradient component, `max(|∂f/∂x|, |∂f/∂y|,
-    /// |∂f/∂z|)`, of the normalised field per voxel, over the block's voxels.
-    pub max_gradient: Vec<f32>,
 }
 
 impl BlockGrid {
@@ -46,7 +43,36 @@ impl BlockGrid {
     }
 }
 
-/// Builds the block grid from a typed grid (see [`crate::volume::Volume::visit`]).
+/// Number of blocks per axis for `dims` voxels (blocks cover the
+/// `dims − 1` cells; a one-voxel axis has one block).
+fn block_counts(dims: [usize; 3], b: usize) -> [usize; 3] {
+    dims.map(|d| d.saturating_sub(1).div_ceil(b).max(1))
+}
+
+/// Runs `f(voxel range lo..=hi per axis)` for every block, in parallel.
+fn per_block<R: Send>(
+    dims: [usize; 3],
+    b: usize,
+    f: impl Fn([usize; 3], [usize; 3]) -> R + Sync,
+) -> Vec<R> {
+    let counts = block_counts(dims, b);
+    (0..counts[0] * counts[1] * counts[2])
+        .into_par_iter()
+        .map(|idx| {
+            let bi = [
+                idx % counts[0],
+                idx / counts[0] % counts[1],
+                idx / (counts[0] * counts[1]),
+            ];
+            let lo = bi.map(|c| c * b);
+            let hi = [0, 1, 2].map(|a| ((bi[a] + 1) * b).min(dims[a] - 1));
+            f(lo, hi)
+        })
+        .collect()
+}
+
+/// Builds the block grid (value ranges) from a typed grid (see
+/// [`crate::volume::Volume::visit`]).
 pub struct BuildBlocks {
     pub size: usize,
 }
@@ -56,54 +82,65 @@ impl GridVisitor for BuildBlocks {
     fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> BlockGrid {
         let b = self.size.max(1);
         let dims = grid.dims();
-        // Blocks over the cells (dims − 1 per axis; a one-voxel axis has one block).
-        let counts = dims.map(|d| d.saturating_sub(1).div_ceil(b).max(1));
-        let n = counts[0] * counts[1] * counts[2];
-        let per_block: Vec<([f32; 2], f32)> = (0..n)
-            .into_par_iter()
-            .map(|i| {
-                let bi = [
-                    i % counts[0],
-                    i / counts[0] % counts[1],
-                    i / (counts[0] * counts[1]),
-                ];
-                let lo = bi.map(|c| c * b);
-                let hi = [0, 1, 2].map(|a| ((bi[a] + 1) * b).min(dims[a] - 1));
-                let mut mn = f32::INFINITY;
-                let mut mx = f32::NEG_INFINITY;
-                let mut g = 0.0f32;
-                for k in lo[2]..=hi[2] {
-                    for j in lo[1]..=hi[1] {
-                        for i in lo[0]..=hi[0] {
-                            let v = grid.voxel(i, j, k);
-                            mn = mn.min(v);
-                            mx = mx.max(v);
-                            // Central differences (one-sided at the volume's faces).
-                            let d = |a: usize, idx: [usize; 3]| -> f32 {
-                                let mut p = idx;
-                                let mut q = idx;
-                                p[a] = (idx[a] + 1).min(dims[a] - 1);
-                                q[a] = idx[a].saturating_sub(1);
-                                let span = (p[a] - q[a]).max(1) as f32;
-                                (grid.voxel(p[0], p[1], p[2]) - grid.voxel(q[0], q[1], q[2])) / span
-                            };
-                            let idx = [i, j, k];
-                            g = g
-                                .max(d(0, idx).abs())
-                                .max(d(1, idx).abs())
-                                .max(d(2, idx).abs());
-                        }
+        let (scale, offset) = grid.scale_offset();
+        let range = per_block(dims, b, |lo, hi| {
+            let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for v in &grid.row(j, k)[lo[0]..=hi[0]] {
+                        let v = v.to_f32();
+                        mn = mn.min(v);
+                        mx = mx.max(v);
                     }
                 }
-                ([mn, mx], g)
-            })
-            .collect();
+            }
+            // Raw stored values normalised at the end (scale > 0).
+            [mn * scale + offset, mx * scale + offset]
+        });
         BlockGrid {
             size: b,
-            counts,
-            range: per_block.iter().map(|p| p.0).collect(),
-            max_gradient: per_block.iter().map(|p| p.1).collect(),
+            counts: block_counts(dims, b),
+            range,
         }
+    }
+}
+
+/// The largest central-difference gradient component, `max(|∂f/∂x|,
+/// |∂f/∂y|, |∂f/∂z|)` of the normalised field per voxel, over each block's
+/// voxels (for `adaptive-max`; built on first use).
+pub struct BuildMaxGradient {
+    pub size: usize,
+}
+
+impl GridVisitor for BuildMaxGradient {
+    type Output = Vec<f32>;
+    fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Vec<f32> {
+        let b = self.size.max(1);
+        let dims = grid.dims();
+        let (scale, _) = grid.scale_offset();
+        per_block(dims, b, |lo, hi| {
+            let mut g = 0.0f32;
+            for k in lo[2]..=hi[2] {
+                let (k0, k1) = (k.saturating_sub(1), (k + 1).min(dims[2] - 1));
+                let kz = 1.0 / (k1 - k0).max(1) as f32;
+                for j in lo[1]..=hi[1] {
+                    let (j0, j1) = (j.saturating_sub(1), (j + 1).min(dims[1] - 1));
+                    let jy = 1.0 / (j1 - j0).max(1) as f32;
+                    let row = grid.row(j, k);
+                    let (ry0, ry1) = (grid.row(j0, k), grid.row(j1, k));
+                    let (rz0, rz1) = (grid.row(j, k0), grid.row(j, k1));
+                    for i in lo[0]..=hi[0] {
+                        // Central differences, one-sided at the faces.
+                        let (i0, i1) = (i.saturating_sub(1), (i + 1).min(dims[0] - 1));
+                        let gx = (row[i1].to_f32() - row[i0].to_f32()) / (i1 - i0).max(1) as f32;
+                        let gy = (ry1[i].to_f32() - ry0[i].to_f32()) * jy;
+                        let gz = (rz1[i].to_f32() - rz0[i].to_f32()) * kz;
+                        g = g.max(gx.abs()).max(gy.abs()).max(gz.abs());
+                    }
+                }
+            }
+            g * scale
+        })
     }
 }
 

@@ -270,6 +270,7 @@ pub struct Renderer<'v> {
     volume: &'v Volume,
     window: [f32; 2],
     blocks: BlockGrid,
+    max_gradient: std::sync::OnceLock<Vec<f32>>,
 }
 
 impl<'v> Renderer<'v> {
@@ -298,6 +299,7 @@ impl<'v> Renderer<'v> {
             volume,
             window,
             blocks,
+            max_gradient: std::sync::OnceLock::new(),
         })
     }
 
@@ -314,6 +316,19 @@ impl<'v> Renderer<'v> {
     /// The block grid.
     pub fn blocks(&self) -> &BlockGrid {
         &self.blocks
+    }
+
+    /// Largest gradient component per block (built on first use).
+    pub fn max_gradient(&self) -> &[f32] {
+        self.max_gradient.get_or_init(|| {
+            self.volume.visit(
+                self.window[0],
+                self.window[1],
+                blocks::BuildMaxGradient {
+                    size: self.blocks.size,
+                },
+            )
+        })
     }
 
     /// Renders with `tf`, seen by `camera`.
@@ -339,6 +354,11 @@ impl<'v> Renderer<'v> {
             progress,
             blocks: &self.blocks,
             empty: self.blocks.empty_flags(tf),
+            max_gradient: if params.method == Method::AdaptiveMax {
+                self.max_gradient()
+            } else {
+                &[]
+            },
         };
         let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
         stats.seconds = start.elapsed().as_secs_f64();
@@ -350,6 +370,7 @@ struct Job<'a> {
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
+    max_gradient: &'a [f32],
     lut: Lut,
     cam: Camera,
     params: &'a RenderParams,
@@ -412,7 +433,7 @@ impl Job<'_> {
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
             empty: &self.empty,
-            max_gradient: &self.blocks.max_gradient,
+            max_gradient: self.max_gradient,
             level_lo,
             level_hi,
             k_ref: p.adaptive.k_ref,

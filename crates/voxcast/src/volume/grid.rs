@@ -94,6 +94,18 @@ impl<'a, T: Voxel> Grid<'a, T> {
         self.dims
     }
 
+    /// The stored values of row `(·, j, k)` (x varying).
+    #[inline]
+    pub fn row(&self, j: usize, k: usize) -> &'a [T] {
+        let start = self.dims[0] * (j + self.dims[1] * k);
+        &self.data[start..start + self.dims[0]]
+    }
+
+    /// The affine map from stored to normalised values: `v·scale + offset`.
+    pub fn scale_offset(&self) -> (f32, f32) {
+        (self.scale, self.offset)
+    }
+
     /// Normalised value of voxel `(i, j, k)`.
     #[inline(always)]
     pub fn voxel(&self, i: usize, j: usize, k: usize) -> f32 {
