@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 use voxcast::camera::Projection;
 use voxcast::io::{OpenOptions, RawLayout};
-use voxcast::render::{Method, OpticalModel, Order};
+use voxcast::render::{MethodSpec, OpticalModel, Order};
 use voxcast::scene::Scene;
 use voxcast::ScalarType;
 
@@ -31,6 +31,9 @@ pub enum Command {
     /// Render a volume (or the built-in demo) to a PNG/EXR image.
     #[command(after_long_help = RENDER_HELP)]
     Render(Box<RenderArgs>),
+    /// Compare sampling methods on one scene: work, time, and error against a reference.
+    #[command(after_long_help = BENCH_HELP)]
+    Bench(Box<BenchArgs>),
     /// Print a volume's dims, type, spacing, value range and histogram.
     Info(InfoArgs),
     /// Compare two images: PSNR (dB) and SSIM.
@@ -50,7 +53,22 @@ Examples:
 Axes: at azimuth 0, elevation 0 the camera looks along +y with +x to the right
 and +z up; positive azimuth orbits counter-clockwise seen from +z.";
 
-/// Options to open an input (shared by render and info).
+const BENCH_HELP: &str = "\
+Every method renders the same volume, transfer function, camera and size with
+one renderer; each is timed over --repeat renders after --warmup untimed ones
+(methods interleaved). PSNR and SSIM are measured against a reference render:
+uniform, step 1/16 voxel, no early ray termination, no empty-space skipping.
+The reference is cached as EXR in $VOXCAST_CACHE (else $XDG_CACHE_HOME/voxcast,
+else ~/.cache/voxcast), keyed by a hash of the scene and the voxels.
+The table goes to stdout; PSNR is ∞ (JSON null, identical: true) when a
+method's image equals the reference. Exit status 1 if any method fails.
+
+Examples:
+  voxcast bench ../shared/data/teapot_ct/slices --size 256x256
+  voxcast bench builtin:demo --methods uniform,adaptive --repeat 3 --json b.json --chart b.png
+  voxcast bench --scene saved.toml --markdown        # the README's table";
+
+/// Options to open an input (shared by render, bench and info).
 #[derive(Args, Clone, Default)]
 pub struct OpenArgs {
     /// Read INPUT as raw voxels with these dims (X,Y,Z; x fastest).
@@ -125,28 +143,17 @@ fn triple<T: std::str::FromStr + Copy>(s: &str, flag: &str) -> Result<[T; 3]> {
     Ok([v[0], v[1], v[2]])
 }
 
+/// Everything that defines a scene, shared by `render` and `bench`: the
+/// input and how to open it, the transfer function, the camera and the ray
+/// casting parameters. A `--scene` file is the starting point; flags given
+/// override it.
 #[derive(Args)]
-pub struct RenderArgs {
-    /// Volume to render: a file, folder, glob, or builtin:NAME (default: builtin:demo).
+pub struct SceneArgs {
+    /// Volume: a file, folder, glob, or builtin:NAME (default: builtin:demo).
     pub input: Option<String>,
-    /// Output image (.png, or .exr for linear float).
-    #[arg(short, long, value_name = "FILE")]
-    pub output: Option<PathBuf>,
     /// Start from a scene file (flags given here override it).
     #[arg(long, value_name = "FILE")]
     pub scene: Option<PathBuf>,
-    /// Write the scene this command implies, to reproduce the image later.
-    #[arg(long, value_name = "FILE")]
-    pub save_scene: Option<PathBuf>,
-    /// Also write the linear float image as OpenEXR.
-    #[arg(long, value_name = "FILE.exr")]
-    pub float_out: Option<PathBuf>,
-    /// Write the render statistics as JSON (rays, samples, interpolations, seconds, …).
-    #[arg(long, value_name = "FILE")]
-    pub stats_json: Option<PathBuf>,
-    /// No messages on stderr.
-    #[arg(short, long)]
-    pub quiet: bool,
 
     #[command(flatten)]
     pub open: OpenArgs,
@@ -163,7 +170,7 @@ pub struct RenderArgs {
     )]
     pub window: Option<String>,
 
-    /// Image size.
+    /// Image size (default 512x512).
     #[arg(long, value_name = "WxH", help_heading = "Camera")]
     pub size: Option<String>,
     /// Orbit angle about +z in degrees.
@@ -182,9 +189,6 @@ pub struct RenderArgs {
     #[arg(long, help_heading = "Camera")]
     pub ortho: bool,
 
-    /// Sampling method along rays.
-    #[arg(long, value_enum, help_heading = "Ray casting")]
-    pub method: Option<MethodArg>,
     /// Step length in voxels (default 0.5).
     #[arg(long, help_heading = "Ray casting")]
     pub step: Option<f32>,
@@ -200,17 +204,92 @@ pub struct RenderArgs {
     /// Gradient (Blinn–Phong) shading: on or off (default on).
     #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
     pub shading: Option<String>,
+    /// Empty-space skipping over fully transparent blocks: on or off (default on).
+    #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
+    pub skip_empty: Option<String>,
+    /// A random start offset per pixel against wood-grain artefacts: on or off (default off).
+    #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
+    pub jitter: Option<String>,
     /// Background: black, white, R,G,B (0…1) or #rrggbb.
     #[arg(long, value_name = "COLOR", help_heading = "Ray casting")]
     pub background: Option<String>,
-    /// Random seed (stochastic methods).
+    /// Random seed (stochastic methods and jitter).
     #[arg(long, help_heading = "Ray casting")]
     pub seed: Option<u64>,
 }
 
-#[derive(clap::ValueEnum, Clone, Copy)]
-pub enum MethodArg {
-    Uniform,
+#[derive(Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Output image (.png, or .exr for linear float).
+    #[arg(short, long, value_name = "FILE")]
+    pub output: Option<PathBuf>,
+    /// Write the scene this command implies, to reproduce the image later.
+    #[arg(long, value_name = "FILE")]
+    pub save_scene: Option<PathBuf>,
+    /// Also write the linear float image as OpenEXR.
+    #[arg(long, value_name = "FILE.exr")]
+    pub float_out: Option<PathBuf>,
+    /// Write the render statistics as JSON (rays, samples, interpolations, seconds, …).
+    #[arg(long, value_name = "FILE")]
+    pub stats_json: Option<PathBuf>,
+    /// No messages on stderr.
+    #[arg(short, long)]
+    pub quiet: bool,
+    /// Sampling method along rays: uniform, adaptive, adaptive-max or
+    /// threshold, optionally with +grouped (e.g. adaptive+grouped).
+    #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
+    pub method: Option<String>,
+}
+
+impl RenderArgs {
+    /// The scene these flags imply.
+    pub fn scene(&self) -> Result<Scene> {
+        let mut scene = self.scene.base_scene()?;
+        if let Some(m) = &self.method {
+            MethodSpec::parse(m)
+                .with_context(|| format!("--method {m}"))?
+                .apply(&mut scene.render);
+        }
+        self.scene.apply(&mut scene)?;
+        Ok(scene)
+    }
+}
+
+/// `voxcast bench`: the default `--methods`.
+pub const DEFAULT_METHODS: &str = voxcast::bench::DEFAULT_METHODS;
+
+#[derive(Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Methods to compare, comma-separated: uniform, adaptive, adaptive-max,
+    /// threshold, each optionally +grouped. uniform (the baseline of the
+    /// speed-ups) is added when missing.
+    #[arg(long, value_name = "LIST", default_value = DEFAULT_METHODS)]
+    pub methods: String,
+    /// Timed renders per method (the median is reported).
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub repeat: usize,
+    /// Untimed renders per method before the timed ones.
+    #[arg(long, value_name = "N", default_value_t = 1)]
+    pub warmup: usize,
+    /// Write the report as JSON.
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Draw time against PSNR, one point per method, as a PNG.
+    #[arg(long, value_name = "FILE.png")]
+    pub chart: Option<PathBuf>,
+    /// Print the table as Markdown (for the README) instead of plain text.
+    #[arg(long)]
+    pub markdown: bool,
+    /// Render the reference again even when it is cached (and update the cache).
+    #[arg(long)]
+    pub refresh_reference: bool,
+    /// No messages on stderr (the table still goes to stdout).
+    #[arg(short, long)]
+    pub quiet: bool,
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]
@@ -226,7 +305,31 @@ pub enum OpticalArg {
     EmissionAbsorption,
 }
 
-impl RenderArgs {
+fn on_off(flag: &str, s: &str) -> Result<bool> {
+    Ok(match s {
+        "on" | "true" | "yes" => true,
+        "off" | "false" | "no" => false,
+        _ => bail!("--{flag} {s}: expected on or off"),
+    })
+}
+
+impl SceneArgs {
+    /// The scene to start from: the `--scene` file, or the default scene
+    /// (the demo in its own three-quarter view when no input is given).
+    pub fn base_scene(&self) -> Result<Scene> {
+        let mut scene = match &self.scene {
+            Some(p) => Scene::load(p)?,
+            None => Scene::default(),
+        };
+        if self.scene.is_none() && self.input.is_none() {
+            // The demo's own three-quarter view (flags given still override it).
+            scene.camera.azimuth = 30.0;
+            scene.camera.elevation = 20.0;
+            scene.camera.zoom = 1.6;
+        }
+        Ok(scene)
+    }
+
     /// Applies the flags given on the command line to `scene`.
     pub fn apply(&self, scene: &mut Scene) -> Result<()> {
         if let Some(i) = &self.input {
@@ -284,11 +387,6 @@ impl RenderArgs {
         if self.ortho {
             c.projection = Projection::Orthographic;
         }
-        if let Some(m) = self.method {
-            r.method = match m {
-                MethodArg::Uniform => Method::Uniform,
-            };
-        }
         if let Some(v) = self.step {
             r.step = v;
         }
@@ -309,11 +407,13 @@ impl RenderArgs {
             };
         }
         if let Some(s) = &self.shading {
-            r.shading = match s.as_str() {
-                "on" | "true" | "yes" => true,
-                "off" | "false" | "no" => false,
-                _ => bail!("--shading {s}: expected on or off"),
-            };
+            r.shading = on_off("shading", s)?;
+        }
+        if let Some(s) = &self.skip_empty {
+            r.skip_empty = on_off("skip-empty", s)?;
+        }
+        if let Some(s) = &self.jitter {
+            r.jitter = on_off("jitter", s)?;
         }
         if let Some(b) = &self.background {
             r.background = parse_color(b)?;
@@ -323,6 +423,13 @@ impl RenderArgs {
         }
         r.validate()?;
         Ok(())
+    }
+
+    /// The base scene with the flags applied.
+    pub fn scene(&self) -> Result<Scene> {
+        let mut scene = self.base_scene()?;
+        self.apply(&mut scene)?;
+        Ok(scene)
     }
 }
 

@@ -2,14 +2,15 @@
 //! No rendering logic lives here.
 
 mod args;
+mod chart;
 
 use anyhow::{bail, Context, Result};
-use args::{Cli, Command, CompareArgs, InfoArgs, RenderArgs};
+use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 use voxcast::scene::{Scene, BUILTIN_PREFIX};
 use voxcast::{metrics, Image};
@@ -18,6 +19,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(a) => render(*a),
+        Command::Bench(a) => bench(*a),
         Command::Info(a) => info(a),
         Command::Compare(a) => compare(a),
         Command::Presets => {
@@ -32,17 +34,7 @@ fn main() {
 }
 
 fn render(a: RenderArgs) -> Result<()> {
-    let mut scene = match &a.scene {
-        Some(p) => Scene::load(p)?,
-        None => Scene::default(),
-    };
-    if a.scene.is_none() && a.input.is_none() {
-        // The demo's own three-quarter view (flags given still override it).
-        scene.camera.azimuth = 30.0;
-        scene.camera.elevation = 20.0;
-        scene.camera.zoom = 1.6;
-    }
-    a.apply(&mut scene)?;
+    let scene = a.scene()?;
     let out = a
         .output
         .clone()
@@ -54,20 +46,8 @@ fn render(a: RenderArgs) -> Result<()> {
     let quiet = a.quiet;
     let t_load = Instant::now();
     let prepared = scene.prepare()?;
-    let v = &prepared.volume;
     if !quiet {
-        let d = v.dims();
-        eprintln!(
-            "loaded {} — {}×{}×{} {} in {:.2} s; window [{}, {}]",
-            scene.input.path,
-            d[0],
-            d[1],
-            d[2],
-            v.scalar_type(),
-            t_load.elapsed().as_secs_f64(),
-            prepared.window[0],
-            prepared.window[1]
-        );
+        eprintln!("{}", loaded(&scene, &prepared, t_load));
     }
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     bar.set_style(
@@ -117,13 +97,132 @@ fn render(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Refuses to write over an input file or with an unknown extension.
+fn bench(a: BenchArgs) -> Result<()> {
+    use voxcast::bench;
+    let methods = bench::parse_methods(&a.methods)?;
+    if a.repeat == 0 {
+        bail!("--repeat 0: at least one timed render per method is needed");
+    }
+    let scene = a.scene.scene()?;
+    if let Some(f) = &a.json {
+        check_output(f, &scene.input.path, &[])?;
+    }
+    if let Some(f) = &a.chart {
+        check_output(f, &scene.input.path, &["png"])?;
+    }
+    if let (Some(j), Some(c)) = (&a.json, &a.chart) {
+        if j == c {
+            bail!("--json and --chart both name {}", j.display());
+        }
+    }
+    let quiet = a.quiet;
+    let t_load = Instant::now();
+    let prepared = scene.prepare()?;
+    if !quiet {
+        eprintln!("{}", loaded(&scene, &prepared, t_load));
+    }
+    let config = bench::BenchConfig {
+        methods,
+        repeat: a.repeat,
+        warmup: a.warmup,
+        cache_dir: Some(bench::default_cache_dir()),
+        refresh_reference: a.refresh_reference,
+    };
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("{msg:<26} {bar:40.cyan/blue} {percent:>3}% {elapsed}<{eta}")
+            .expect("valid template"),
+    );
+    if std::io::stderr().is_terminal() && !quiet {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+    }
+    // The render whose name the bar shows (+1; 0 before the first).
+    let current = AtomicUsize::new(0);
+    let progress = |p: &bench::Progress<'_>| {
+        bar.set_length((p.renders * p.total) as u64);
+        bar.set_position((p.render * p.total + p.done) as u64);
+        if current.swap(p.render + 1, Ordering::Relaxed) != p.render + 1 {
+            bar.set_message(p.task.to_string());
+        }
+    };
+    let report = bench::run(&scene, &prepared, &config, &progress)?;
+    bar.finish_and_clear();
+    if !quiet {
+        let r = &report.reference;
+        let file = r
+            .cache_file
+            .as_ref()
+            .map(|f| f.display().to_string())
+            .unwrap_or_else(|| "not cached".into());
+        let how = match r.cache {
+            bench::CacheStatus::Hit => "read from the cache",
+            bench::CacheStatus::Miss => "rendered and cached",
+            bench::CacheStatus::Refreshed => "rendered again and cached",
+            bench::CacheStatus::Off => "rendered",
+        };
+        eprintln!("reference {how}: {file}");
+    }
+    if a.markdown {
+        print!("{}", bench::markdown(&report));
+    } else {
+        print!("{}", bench::text_table(&report));
+    }
+    // Both outputs are made before either is written, so a failure leaves none.
+    let json = serde_json::to_string_pretty(&report)?;
+    let png = match &a.chart {
+        Some(_) => Some(chart::png(&report).context("drawing the chart")?),
+        None => None,
+    };
+    if let Some(f) = &a.json {
+        voxcast::image::atomic_write(f, |w| {
+            use std::io::Write;
+            writeln!(w, "{json}")
+        })?;
+    }
+    if let (Some(f), Some(bytes)) = (&a.chart, &png) {
+        voxcast::image::atomic_write(f, |w| {
+            use std::io::Write;
+            w.write_all(bytes)
+        })?;
+    }
+    let failures = report.failures();
+    if !failures.is_empty() {
+        let list: Vec<String> = failures.iter().map(|(m, e)| format!("{m}: {e}")).collect();
+        bail!(
+            "{} of {} methods failed to render — {}",
+            failures.len(),
+            report.methods.len(),
+            list.join("; ")
+        );
+    }
+    Ok(())
+}
+
+/// The line saying what was loaded.
+fn loaded(scene: &Scene, prepared: &voxcast::scene::Prepared, since: Instant) -> String {
+    let v = &prepared.volume;
+    let d = v.dims();
+    format!(
+        "loaded {} — {}×{}×{} {} in {:.2} s; window [{}, {}]",
+        scene.input.path,
+        d[0],
+        d[1],
+        d[2],
+        v.scalar_type(),
+        since.elapsed().as_secs_f64(),
+        prepared.window[0],
+        prepared.window[1]
+    )
+}
+
+/// Refuses to write over an input file, into a missing folder, or with an
+/// unknown extension (any extension when `exts` is empty).
 fn check_output(out: &Path, input: &str, exts: &[&str]) -> Result<()> {
     let ext = out
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
         .unwrap_or_default();
-    if !exts.contains(&ext.as_str()) {
+    if !exts.is_empty() && !exts.contains(&ext.as_str()) {
         bail!(
             "{}: output must end in {}",
             out.display(),
@@ -140,7 +239,16 @@ fn check_output(out: &Path, input: &str, exts: &[&str]) -> Result<()> {
         );
     }
     if out.is_dir() {
-        bail!("{}: is a folder; give an image file name", out.display());
+        bail!("{}: is a folder; give a file name", out.display());
+    }
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        if !parent.is_dir() {
+            bail!(
+                "{}: the folder {} does not exist",
+                out.display(),
+                parent.display()
+            );
+        }
     }
     Ok(())
 }

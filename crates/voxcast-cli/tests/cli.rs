@@ -264,3 +264,49 @@ fn renders_every_shared_volume() {
         assert!(lit > 64 * 64 / 50, "{rel}: only {lit} pixels show anything");
     }
 }
+
+/// `render` takes every method spec (`NAME[+grouped]`) and the scene flags it
+/// shares with `bench` (`--skip-empty`, `--jitter`); a saved scene keeps them.
+#[test]
+fn render_takes_method_specs_and_the_shared_scene_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = voxcast(
+        &[
+            "render",
+            "builtin:sphere",
+            "-o",
+            "m.png",
+            "--size",
+            "32x32",
+            "--method",
+            "adaptive+grouped",
+            "--skip-empty",
+            "off",
+            "--jitter",
+            "on",
+            "--save-scene",
+            "m.toml",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let scene = voxcast::Scene::load(&dir.path().join("m.toml")).unwrap();
+    assert_eq!(scene.render.method, voxcast::render::Method::Adaptive);
+    assert!(scene.render.grouped && scene.render.jitter && !scene.render.skip_empty);
+    let o = voxcast(
+        &[
+            "render",
+            "builtin:sphere",
+            "--method",
+            "warp",
+            "-o",
+            "w.png",
+        ],
+        dir.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    let err = stderr(&o);
+    assert!(err.contains("warp") && err.contains("threshold"), "{err}");
+    assert!(!dir.path().join("w.png").exists());
+}

@@ -1,0 +1,352 @@
+//! End-to-end tests of `voxcast bench`: the JSON report's fields, the
+//! reference compared with itself, the reference cache, the chart, the
+//! Markdown table, and bad input. Small images (64×64) keep them fast; every
+//! run gets its own cache folder through `VOXCAST_CACHE`.
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn bench(args: &[&str], cwd: &Path, cache: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_voxcast"))
+        .arg("bench")
+        .args(args)
+        .current_dir(cwd)
+        .env("VOXCAST_CACHE", cache)
+        .output()
+        .expect("run voxcast")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn read_json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+const FIELDS: [&str; 9] = [
+    "name",
+    "samples",
+    "interpolations",
+    "ms_median",
+    "ms_min",
+    "ms_max",
+    "speedup_vs_uniform",
+    "psnr_db",
+    "ssim",
+];
+
+#[test]
+fn bench_json_has_every_field_for_every_method() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    // The default method list.
+    let o = bench(
+        &[
+            "builtin:sphere",
+            "--size",
+            "64x64",
+            "--repeat",
+            "2",
+            "--json",
+            "b.json",
+        ],
+        dir.path(),
+        &cache,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = read_json(&dir.path().join("b.json"));
+    let methods = j["methods"].as_array().unwrap();
+    let names: Vec<&str> = methods
+        .iter()
+        .map(|m| m["name"].as_str().unwrap())
+        .collect();
+    let default: Vec<&str> = voxcast::bench::DEFAULT_METHODS.split(',').collect();
+    assert_eq!(names, default);
+    for m in methods {
+        for f in FIELDS {
+            assert!(m.get(f).is_some(), "{} lacks `{f}`: {m}", m["name"]);
+        }
+        let num = |f: &str| {
+            m[f].as_f64()
+                .unwrap_or_else(|| panic!("{}: `{f}` is not a number: {m}", m["name"]))
+        };
+        assert!(m["samples"].as_u64().unwrap() > 0, "{m}");
+        assert!(m["interpolations"].as_u64().unwrap() > 0, "{m}");
+        assert_eq!(m["rays"], 64 * 64, "{m}");
+        let (lo, med, hi) = (num("ms_min"), num("ms_median"), num("ms_max"));
+        assert!(lo > 0.0 && lo <= med && med <= hi, "{m}");
+        assert_eq!(m["ms_per_repeat"].as_array().unwrap().len(), 2, "{m}");
+        assert!(num("speedup_vs_uniform") > 0.0, "{m}");
+        let ssim = num("ssim");
+        assert!(ssim > 0.5 && ssim <= 1.0 + 1e-12, "{m}");
+        // PSNR: a number of dB, or null when the image equals the reference.
+        match m["psnr_db"].as_f64() {
+            Some(p) => assert!(p > 20.0 && m["identical"] == false, "{m}"),
+            None => assert!(m["psnr_db"].is_null() && m["identical"] == true, "{m}"),
+        }
+        assert!(m.get("error").is_none(), "{m}");
+    }
+    let u = &methods[0];
+    assert_eq!(u["name"], "uniform");
+    assert_eq!(u["speedup_vs_uniform"].as_f64(), Some(1.0));
+    assert_eq!(u["samples_vs_uniform"].as_f64(), Some(1.0));
+    let r = &j["reference"];
+    assert_eq!(r["method"], "uniform");
+    assert_eq!(r["step"].as_f64(), Some(1.0 / 16.0));
+    assert_eq!(r["ert"].as_f64(), Some(1.0));
+    assert_eq!(r["skip_empty"], false);
+    assert_eq!(r["cache"], "miss");
+    // The reference takes 8× finer steps than the scene's 0.5 voxel and
+    // never terminates early.
+    assert!(r["samples"].as_u64().unwrap() > 4 * u["samples"].as_u64().unwrap());
+    assert!(Path::new(r["cache_file"].as_str().unwrap()).starts_with(&cache));
+    assert_eq!(j["scene"]["width"], 64);
+    assert_eq!(j["run"]["repeat"], 2);
+    assert!(j["machine"]["threads"].as_u64().unwrap() >= 1);
+    // The plain table went to stdout, one row per method.
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("speed-up") && out.contains("PSNR dB"), "{out}");
+    for n in default {
+        assert!(
+            out.lines().any(|l| l.starts_with(&format!("{n} "))),
+            "{out}"
+        );
+    }
+}
+
+#[test]
+fn reference_against_itself_gives_infinite_psnr() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    // `uniform` at the reference's own settings renders the reference.
+    let o = bench(
+        &[
+            "builtin:sphere",
+            "--size",
+            "64x64",
+            "--methods",
+            "uniform",
+            "--step",
+            "0.0625",
+            "--ert",
+            "1",
+            "--skip-empty",
+            "off",
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--json",
+            "self.json",
+        ],
+        dir.path(),
+        &cache,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = read_json(&dir.path().join("self.json"));
+    let m = &j["methods"][0];
+    // Documented: infinite PSNR is written as null, with identical = true.
+    assert!(m["psnr_db"].is_null(), "{m}");
+    assert_eq!(m["identical"], true);
+    assert_eq!(m["ssim"].as_f64(), Some(1.0));
+    assert_eq!(m["samples"], j["reference"]["samples"]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains('∞'), "{out}");
+}
+
+#[test]
+fn second_run_hits_the_reference_cache() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let run = |extra: &[&str], json: &str| {
+        let mut args = vec![
+            "builtin:demo",
+            "--size",
+            "48x40",
+            "--methods",
+            "uniform",
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--json",
+            json,
+        ];
+        args.extend_from_slice(extra);
+        let o = bench(&args, dir.path(), &cache);
+        assert!(o.status.success(), "{}", stderr(&o));
+        read_json(&dir.path().join(json))
+    };
+    let a = run(&[], "a.json");
+    assert_eq!(a["reference"]["cache"], "miss");
+    let b = run(&[], "b.json");
+    assert_eq!(b["reference"]["cache"], "hit");
+    assert_eq!(a["reference"]["key"], b["reference"]["key"]);
+    assert_eq!(a["reference"]["cache_file"], b["reference"]["cache_file"]);
+    // The cached reference is exact: the same PSNR to the last bit.
+    assert_eq!(a["methods"][0]["psnr_db"], b["methods"][0]["psnr_db"]);
+    assert_eq!(a["methods"][0]["ssim"], b["methods"][0]["ssim"]);
+    // The scene's own step does not change the reference …
+    let c = run(&["--step", "0.8"], "c.json");
+    assert_eq!(c["reference"]["cache"], "hit");
+    // … the camera does.
+    let d = run(&["--azimuth", "15"], "d.json");
+    assert_eq!(d["reference"]["cache"], "miss");
+    assert_ne!(d["reference"]["key"], a["reference"]["key"]);
+    let e = run(&["--refresh-reference"], "e.json");
+    assert_eq!(e["reference"]["cache"], "refreshed");
+    let mut files: Vec<String> = std::fs::read_dir(&cache)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    assert_eq!(files.len(), 4, "{files:?}"); // two references, EXR + JSON each
+    assert!(
+        files.iter().all(|f| f.starts_with("reference-")),
+        "{files:?}"
+    );
+}
+
+#[test]
+fn chart_writes_a_png() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let o = bench(
+        &[
+            "builtin:sphere",
+            "--size",
+            "64x64",
+            "--methods",
+            "uniform,threshold",
+            "--repeat",
+            "1",
+            "--chart",
+            "chart.png",
+            "-q",
+        ],
+        dir.path(),
+        &cache,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).is_empty(), "-q: {}", stderr(&o));
+    let img = voxcast::Image::read(&dir.path().join("chart.png")).unwrap();
+    assert!(img.width >= 600 && img.height >= 400);
+    // White paper with dark text and coloured points on it.
+    let white = img
+        .pixels
+        .iter()
+        .filter(|p| p[0] > 0.99 && p[1] > 0.99 && p[2] > 0.99);
+    assert!(white.count() > img.pixels.len() / 2);
+    let dark = img
+        .pixels
+        .iter()
+        .filter(|p| p[0] + p[1] + p[2] < 0.1)
+        .count();
+    assert!(dark > 500, "no text? {dark} dark pixels");
+    let coloured = img
+        .pixels
+        .iter()
+        .filter(|p| {
+            let (lo, hi) = (p[0].min(p[1]).min(p[2]), p[0].max(p[1]).max(p[2]));
+            hi - lo > 0.3
+        })
+        .count();
+    assert!(coloured > 100, "no points? {coloured} coloured pixels");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}"); // chart.png and cache/, no temporaries
+}
+
+#[test]
+fn markdown_prints_a_table_with_a_header_row() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let o = bench(
+        &[
+            "builtin:sphere",
+            "--size",
+            "64x64",
+            "--methods",
+            "threshold",
+            "--repeat",
+            "1",
+            "--markdown",
+        ],
+        dir.path(),
+        &cache,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<&str> = out.lines().collect();
+    let h = lines
+        .iter()
+        .position(|l| l.starts_with("| method | samples | interpolations |"))
+        .unwrap_or_else(|| panic!("no header row: {out}"));
+    assert!(
+        lines[h].contains("speed-up") && lines[h].contains("PSNR dB") && lines[h].contains("SSIM")
+    );
+    assert!(lines[h + 1].starts_with("|---|"), "{out}");
+    // uniform was added as the baseline, first, and the note says so.
+    assert!(lines[h + 2].starts_with("| uniform | "), "{out}");
+    assert!(lines[h + 3].starts_with("| threshold | "), "{out}");
+    assert!(lines[h + 2].contains("1.00×"), "{out}");
+    assert_eq!(lines[h + 2].matches('|').count(), 8, "{out}");
+    assert!(
+        out.contains("Scene: builtin:sphere") && out.contains("rayon threads"),
+        "{out}"
+    );
+    assert!(out.contains("uniform` was added"), "{out}");
+}
+
+#[test]
+fn bad_input_fails_cleanly_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let cache = d.join("cache");
+    let out = ["--json", "o.json", "--chart", "o.png"];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["builtin:sphere", "--methods", "uniform,warp"],
+            "known: uniform, adaptive, adaptive-max, threshold",
+        ),
+        (vec!["builtin:sphere", "--methods", "uniform,warp"], "warp"),
+        (
+            vec!["builtin:sphere", "--methods", "adaptive+fast"],
+            "+fast",
+        ),
+        (vec!["builtin:sphere", "--methods", ","], "no method"),
+        (vec!["builtin:sphere", "--repeat", "0"], "--repeat"),
+        (vec!["builtin:sphere", "--size", "64"], "--size"),
+        (vec!["builtin:sphere", "--step", "0"], "step"),
+        (
+            vec!["builtin:sphere", "--skip-empty", "maybe"],
+            "--skip-empty",
+        ),
+        (vec!["missing.nrrd"], "missing.nrrd"),
+        (vec!["builtin:nope"], "nope"),
+        (vec!["builtin:sphere", "--tf", "no-such-tf"], "no-such-tf"),
+    ];
+    for (args, needle) in cases {
+        let mut a = args.clone();
+        a.extend_from_slice(&out);
+        let o = bench(&a, d, &cache);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{a:?}: {err}");
+        assert!(err.contains(needle), "{a:?}: `{needle}` not in: {err}");
+        assert!(!err.contains("panicked"), "{a:?} panicked: {err}");
+    }
+    // Output names that cannot work are refused before anything renders.
+    let o = bench(&["builtin:sphere", "--chart", "c.jpg"], d, &cache);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("c.jpg"), "{}", stderr(&o));
+    let o = bench(&["builtin:sphere", "--json", "nofolder/o.json"], d, &cache);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
+    // Nothing was written: no outputs, no temporaries, no cache.
+    let names: Vec<_> = std::fs::read_dir(d).unwrap().collect();
+    assert!(names.is_empty(), "{names:?}");
+}
