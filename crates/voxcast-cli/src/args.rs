@@ -265,7 +265,7 @@ pub struct BenchArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Methods to compare, comma-separated: uniform, adaptive, adaptive-max,
-    /// threshold, each optionally +grouped. uniform (the baseline of the
+    /// threshold, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
     /// speed-ups) is added when missing.
     #[arg(long, value_name = "LIST", default_value = DEFAULT_METHODS)]
     pub methods: String,

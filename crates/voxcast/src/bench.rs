@@ -127,6 +127,9 @@ pub fn reference_params(base: &RenderParams) -> RenderParams {
     p.ert = 1.0;
     p.skip_empty = false;
     p.jitter = false;
+    // Parameters of the other marchers do not shape the reference.
+    p.adaptive = Default::default();
+    p.threshold = Default::default();
     p
 }
 
@@ -571,6 +574,7 @@ pub fn run(
     let baseline = MethodSpec {
         method: Method::Uniform,
         grouped: false,
+        no_skip: false,
     };
     let mut specs: Vec<(MethodSpec, bool)> = Vec::new();
     for s in &config.methods {

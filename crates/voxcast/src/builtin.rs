@@ -163,7 +163,8 @@ fn plume(dims: [usize; 3]) -> Result<Volume> {
             let column = (-(r / radius).powi(2) * 2.0).exp();
             // The cap: smoke pooled under the top, spreading sideways.
             let cap = smoothstep(0.72, 0.9, h) * (-(r / 0.85).powi(4)).exp();
-            let d = (column.max(cap) * (1.8 * turb - 0.35)).max(0.0);
+            // Below a trace the air is clean: smoke fields are sparse.
+            let d = (column.max(cap) * (1.8 * turb - 0.35) - 0.02).max(0.0);
             d * smoothstep(0.0, 0.05, h) * (1.0 - smoothstep(0.96, 1.0, h))
         })
         .collect();

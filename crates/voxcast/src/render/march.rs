@@ -146,7 +146,7 @@ pub struct AdaptiveParams {
 impl Default for AdaptiveParams {
     fn default() -> Self {
         AdaptiveParams {
-            k_ref: 0.05,
+            k_ref: 0.1,
             min_step: None,
             max_step: None,
         }
@@ -297,7 +297,7 @@ mod tests {
         assert_eq!((lo, hi), (0, 2));
         assert_eq!(p.level(0.0, lo, hi), 2);
         assert_eq!(p.level(10.0, lo, hi), 0);
-        assert_eq!(p.level(0.025, lo, hi), 1);
+        assert_eq!(p.level(0.05, lo, hi), 1);
         let fixed = AdaptiveParams {
             min_step: Some(0.5),
             max_step: Some(0.5),

@@ -72,44 +72,55 @@ impl Method {
 }
 
 /// A method as written on the command line: a marcher name optionally
-/// followed by `+grouped` (S0's grouped interpolation), e.g.
-/// `adaptive+grouped`.
+/// followed by `+grouped` (S0's grouped interpolation) and/or `+noskip`
+/// (empty-space skipping off), e.g. `adaptive+grouped`, `uniform+noskip`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct MethodSpec {
     pub method: Method,
     pub grouped: bool,
+    /// Turn empty-space skipping off (otherwise the scene's setting holds).
+    pub no_skip: bool,
 }
 
 impl MethodSpec {
-    /// Parses `NAME[+grouped]`.
+    /// Parses `NAME[+grouped][+noskip]`.
     pub fn parse(s: &str) -> Result<MethodSpec> {
         let mut parts = s.trim().split('+');
         let name = parts.next().unwrap_or("");
         let method = Method::parse(name).ok_or_else(|| {
             let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
             Error::invalid(format!(
-                "method `{s}`: unknown sampling method `{name}` (known: {}; add +grouped for grouped interpolation)",
+                "method `{s}`: unknown sampling method `{name}` (known: {}; add +grouped for grouped interpolation, +noskip to turn empty-space skipping off)",
                 names.join(", ")
             ))
         })?;
         let mut grouped = false;
+        let mut no_skip = false;
         for p in parts {
             match p {
                 "grouped" => grouped = true,
+                "noskip" => no_skip = true,
                 _ => {
                     return Err(Error::invalid(format!(
-                        "method `{s}`: unknown modifier `+{p}` (known: +grouped)"
+                        "method `{s}`: unknown modifier `+{p}` (known: +grouped, +noskip)"
                     )))
                 }
             }
         }
-        Ok(MethodSpec { method, grouped })
+        Ok(MethodSpec {
+            method,
+            grouped,
+            no_skip,
+        })
     }
 
     /// Sets the method and modifiers of `params`.
     pub fn apply(&self, params: &mut RenderParams) {
         params.method = self.method;
         params.grouped = self.grouped;
+        if self.no_skip {
+            params.skip_empty = false;
+        }
     }
 
     /// Reads the spec back from `params`.
@@ -117,6 +128,7 @@ impl MethodSpec {
         MethodSpec {
             method: params.method,
             grouped: params.grouped,
+            no_skip: !params.skip_empty,
         }
     }
 }
@@ -126,6 +138,9 @@ impl std::fmt::Display for MethodSpec {
         f.write_str(self.method.name())?;
         if self.grouped {
             f.write_str("+grouped")?;
+        }
+        if self.no_skip {
+            f.write_str("+noskip")?;
         }
         Ok(())
     }
