@@ -237,8 +237,13 @@ pub struct RenderArgs {
     /// No messages on stderr.
     #[arg(short, long)]
     pub quiet: bool,
-    /// Sampling method along rays: uniform, adaptive, adaptive-max or
-    /// threshold, optionally with +grouped (e.g. adaptive+grouped).
+    /// Sampling method along rays: uniform (equal steps), adaptive (S0: a step
+    /// per block from the derivative at its midpoint and the distance),
+    /// adaptive-max (the same from the block's largest derivative) or
+    /// threshold (Zeng 2018: the step follows the value's range); append
+    /// +grouped for S0's grouped interpolation, +noskip to turn empty-space
+    /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive]
+    /// and [render.threshold] in a scene file.
     #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
     pub method: Option<String>,
 }
