@@ -91,6 +91,12 @@ pub struct OpenArgs {
     /// Voxel spacing X,Y,Z (overrides the file's).
     #[arg(long, value_name = "X,Y,Z", help_heading = "Input")]
     pub spacing: Option<String>,
+    /// Variable (grid, quantity) to read from a multi-variable file.
+    #[arg(long = "var", value_name = "NAME", help_heading = "Input")]
+    pub variable: Option<String>,
+    /// Time (in the file's units, e.g. seconds) to read from a time series.
+    #[arg(long, value_name = "T", help_heading = "Input")]
+    pub time: Option<f64>,
 }
 
 impl OpenArgs {
@@ -126,7 +132,17 @@ impl OpenArgs {
             }
             None => None,
         };
-        Ok(OpenOptions { raw, spacing })
+        if let Some(t) = self.time {
+            if !t.is_finite() {
+                bail!("--time {t}: expected a finite number");
+            }
+        }
+        Ok(OpenOptions {
+            raw,
+            spacing,
+            variable: self.variable.clone(),
+            time: self.time,
+        })
     }
 }
 
@@ -346,6 +362,12 @@ impl SceneArgs {
         }
         if o.spacing.is_some() {
             scene.input.options.spacing = o.spacing;
+        }
+        if o.variable.is_some() {
+            scene.input.options.variable = o.variable;
+        }
+        if o.time.is_some() {
+            scene.input.options.time = o.time;
         }
         if let Some(tf) = &self.tf {
             scene.transfer.tf = tf.clone();

@@ -305,6 +305,8 @@ fn info(a: InfoArgs) -> Result<()> {
             "percentiles": pct.iter().map(|(q, v)| serde_json::json!({"q": q, "value": v})).collect::<Vec<_>>(),
             "histogram": {"lo": coarse.lo, "hi": coarse.hi, "counts": coarse.counts},
             "variables": vol.variables,
+            "active_voxels": vol.active_voxels,
+            "time": vol.time,
         });
         println!("{}", serde_json::to_string_pretty(&j)?);
         return Ok(());
@@ -349,6 +351,12 @@ fn info(a: InfoArgs) -> Result<()> {
         "  histogram   {}  (64 bins, log counts)",
         sparkline(&vol.histogram(64).counts)
     );
+    if let Some(n) = vol.active_voxels {
+        println!("  active      {n} voxels");
+    }
+    if let Some(t) = vol.time {
+        println!("  time        {t}");
+    }
     if !vol.variables.is_empty() {
         println!("  variables   {}", vol.variables.join(", "));
     }

@@ -45,6 +45,12 @@ pub struct OpenOptions {
     /// Override the spacing the file gives (or supply one it lacks).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spacing: Option<[f32; 3]>,
+    /// The variable (grid, quantity) to read from a multi-variable file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub variable: Option<String>,
+    /// The time to read from a time series (the file's units, e.g. seconds).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time: Option<f64>,
 }
 
 /// The formats voxcast reads.

@@ -188,6 +188,10 @@ pub struct Volume {
     pub name: Option<String>,
     /// For multi-variable files: every variable the file holds.
     pub variables: Vec<String>,
+    /// For sparse formats (OpenVDB): the number of active voxels.
+    pub active_voxels: Option<u64>,
+    /// For time series: the time of this volume (the file's units).
+    pub time: Option<f64>,
 }
 
 /// The most voxels a volume may have (2³⁴ ≈ 17 billion): beyond any file a
@@ -250,6 +254,8 @@ impl Volume {
             units: None,
             name: None,
             variables: Vec::new(),
+            active_voxels: None,
+            time: None,
         })
     }
 
