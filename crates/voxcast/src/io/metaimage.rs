@@ -496,19 +496,13 @@ fn sizes_str(s: &[u64]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::test_support::{err_naming, never_panics};
+    use crate::io::test_support::{err_naming, never_panics, write};
     use crate::testdata::data_path;
     use crate::volume::ScalarType;
     use flate2::write::ZlibEncoder;
     use flate2::Compression;
     use glam::Vec3;
     use std::io::Write;
-
-    fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
-    }
 
     fn local(header: &str, data: &[u8]) -> Vec<u8> {
         let mut v = header.as_bytes().to_vec();

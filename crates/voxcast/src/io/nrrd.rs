@@ -611,18 +611,12 @@ fn read_chunk(file: &Path, start: u64, count: usize, l: &Layout) -> Result<Voxel
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::test_support::{err_naming, never_panics};
+    use crate::io::test_support::{err_naming, never_panics, write};
     use crate::testdata::data_path;
     use crate::volume::ScalarType;
     use flate2::write::GzEncoder;
     use flate2::Compression;
     use std::io::Write;
-
-    fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
-    }
 
     fn attached(header: &str, data: &[u8]) -> Vec<u8> {
         let mut v = header.as_bytes().to_vec();

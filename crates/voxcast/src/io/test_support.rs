@@ -2,7 +2,7 @@
 
 use crate::error::Result;
 use crate::volume::Volume;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The error of `r`, which must name `file` and `field`.
 pub(crate) fn err_naming(r: Result<Volume>, file: &str, field: &str) -> String {
@@ -39,4 +39,11 @@ pub(crate) fn never_panics(
             let _ = read(&p);
         }
     }
+}
+
+/// Writes `bytes` to `dir/name` and returns the path.
+pub(crate) fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).unwrap();
+    p
 }

@@ -623,15 +623,8 @@ fn unescape(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::test_support::{err_naming, never_panics};
+    use crate::io::test_support::{err_naming, never_panics, write};
     use crate::testdata::data_path;
-    use std::path::PathBuf;
-
-    fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
-        let p = dir.join(name);
-        std::fs::write(&p, bytes).unwrap();
-        p
-    }
 
     fn binary(header: &str, data: &[u8], tail: &[u8]) -> Vec<u8> {
         let mut v = header.as_bytes().to_vec();
