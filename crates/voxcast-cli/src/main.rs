@@ -281,6 +281,12 @@ fn info(a: InfoArgs) -> Result<()> {
     scene.input.path = a.input.clone();
     scene.input.options = a.open.options()?;
     let vol = scene.load_volume()?;
+    // An FDS case: its meshes, quantities, times and obstructions.
+    let fds = if a.input.to_ascii_lowercase().ends_with(".smv") {
+        Some(voxcast::io::fds::parse_smv(Path::new(&a.input))?.summary())
+    } else {
+        None
+    };
     let s = *vol.stats();
     let hist = vol.histogram(256);
     let pct = [0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99].map(|q| (q, hist.quantile(q)));
@@ -306,6 +312,7 @@ fn info(a: InfoArgs) -> Result<()> {
             "histogram": {"lo": coarse.lo, "hi": coarse.hi, "counts": coarse.counts},
             "variables": vol.variables,
             "active_voxels": vol.active_voxels,
+            "fds": fds,
             "time": vol.time,
         });
         println!("{}", serde_json::to_string_pretty(&j)?);
@@ -353,6 +360,12 @@ fn info(a: InfoArgs) -> Result<()> {
     );
     if let Some(n) = vol.active_voxels {
         println!("  active      {n} voxels");
+    }
+    if let Some(lines) = &fds {
+        println!("  FDS case");
+        for l in lines {
+            println!("    {l}");
+        }
     }
     if let Some(t) = vol.time {
         println!("  time        {t}");

@@ -249,6 +249,9 @@ fn renders_every_shared_volume() {
         "teapot_ct/slices",
         "dicom_ct_lung",
         "dicom_mri_brain",
+        "smoke_vdb/smoke.vdb",
+        "cloud_vdb/cloud.vdb",
+        "fds_room/room_smoke.smv",
     ];
     let dir = tempfile::tempdir().unwrap();
     for rel in inputs {

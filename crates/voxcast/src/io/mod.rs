@@ -7,6 +7,7 @@
 
 mod decode;
 pub mod dicom;
+pub mod fds;
 pub mod image_stack;
 pub mod metaimage;
 pub mod nifti;
@@ -15,6 +16,7 @@ pub mod raw;
 #[cfg(test)]
 mod test_support;
 pub mod util;
+pub mod vdb;
 pub mod vtk;
 
 use crate::error::{Error, Result};
@@ -63,6 +65,8 @@ pub enum Format {
     Dicom,
     ImageStack,
     Raw,
+    Vdb,
+    Fds,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -97,6 +101,10 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::Nifti)
     } else if name.ends_with(".dcm") {
         Some(Format::Dicom)
+    } else if name.ends_with(".vdb") {
+        Some(Format::Vdb)
+    } else if name.ends_with(".smv") {
+        Some(Format::Fds)
     } else {
         None
     };
@@ -112,6 +120,9 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Ok(Format::Nifti)
     } else if head.len() >= 132 && &head[128..132] == b"DICM" {
         Ok(Format::Dicom)
+    } else if head.starts_with(&[0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0]) {
+        // OpenVDB's magic number 0x56444220 as a little-endian i64.
+        Ok(Format::Vdb)
     } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
         Ok(Format::MetaImage)
     } else if head.starts_with(b"\x89PNG")
@@ -127,7 +138,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }
@@ -142,6 +153,8 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::Dicom => dicom::read(path)?,
         Format::ImageStack => image_stack::read(path)?,
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
+        Format::Vdb => vdb::read(path, opts)?,
+        Format::Fds => fds::read(path, opts)?,
     };
     if let Some(s) = opts.spacing {
         vol.set_spacing(Vec3::from(s))?;
