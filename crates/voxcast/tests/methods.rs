@@ -267,3 +267,32 @@ fn jitter_is_seeded_and_unbiased() {
         "jitter changed the mean opacity"
     );
 }
+
+#[test]
+fn every_block_size_skips_without_changing_pixels() {
+    let (vol, tf) = sparse_scene();
+    let s = vol.stats();
+    // One renderer serves several block sizes (each built on first use).
+    let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
+    let mut p = RenderParams {
+        width: 64,
+        height: 64,
+        skip_empty: false,
+        ..Default::default()
+    };
+    let (full, s_full) = r.render(&tf, &view(), &p, &no_progress).unwrap();
+    p.skip_empty = true;
+    let mut samples = Vec::new();
+    for block in [2, 4, 8, 16] {
+        p.block_size = block;
+        let (img, st) = r.render(&tf, &view(), &p, &no_progress).unwrap();
+        let d = max_diff(&full, &img);
+        assert!(d <= 1e-6, "block {block}: a pixel moved by {d}");
+        samples.push(st.samples);
+    }
+    // Smaller blocks skip more tightly.
+    assert!(samples.windows(2).all(|w| w[0] <= w[1]), "{samples:?}");
+    assert!(samples[0] < s_full.samples);
+    p.block_size = 1;
+    assert!(r.render(&tf, &view(), &p, &no_progress).is_err());
+}

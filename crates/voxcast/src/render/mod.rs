@@ -27,6 +27,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use shading::BlinnPhong;
 use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Where samples go along the ray (DESIGN.md axis 1).
@@ -190,6 +191,9 @@ pub struct RenderParams {
     pub adaptive: AdaptiveParams,
     /// Parameters of `threshold`.
     pub threshold: ThresholdParams,
+    /// Edge of the blocks for empty-space skipping and the adaptive
+    /// marchers, in cells (2…64).
+    pub block_size: u32,
 }
 
 impl Default for RenderParams {
@@ -210,6 +214,7 @@ impl Default for RenderParams {
             jitter: false,
             adaptive: AdaptiveParams::default(),
             threshold: ThresholdParams::default(),
+            block_size: blocks::DEFAULT_BLOCK as u32,
         }
     }
 }
@@ -233,6 +238,12 @@ impl RenderParams {
             return Err(Error::invalid(format!(
                 "ert {}: the termination threshold must be in (0, 1] (1 disables it)",
                 self.ert
+            )));
+        }
+        if !(2..=64).contains(&self.block_size) {
+            return Err(Error::invalid(format!(
+                "block size {}: must be 2…64 cells",
+                self.block_size
             )));
         }
         let t = &self.threshold;
@@ -284,6 +295,13 @@ pub fn render(
 pub struct Renderer<'v> {
     volume: &'v Volume,
     window: [f32; 2],
+    /// Derived structures per block size, built on first use.
+    derived: std::sync::Mutex<Vec<(usize, Arc<Derived>)>>,
+}
+
+/// What a block size derives from the volume: the block grid, and the
+/// per-block maximum derivative for `adaptive-max` (built on first use).
+struct Derived {
     blocks: BlockGrid,
     max_gradient: std::sync::OnceLock<Vec<f32>>,
 }
@@ -291,7 +309,8 @@ pub struct Renderer<'v> {
 impl<'v> Renderer<'v> {
     /// Prepares `volume` for rendering with data values `window[0]…window[1]`
     /// mapped to 0…1. A window of zero width (a constant volume) is widened
-    /// by ±0.5 so it still normalises.
+    /// by ±0.5 so it still normalises. The block grid of the default size is
+    /// built here, so that renders measure rendering, not set-up.
     pub fn new(volume: &'v Volume, window: [f32; 2]) -> Result<Renderer<'v>> {
         let mut window = window;
         if window[0].is_finite() && window[0] == window[1] {
@@ -303,19 +322,13 @@ impl<'v> Renderer<'v> {
                 window[0], window[1]
             )));
         }
-        let blocks = volume.visit(
-            window[0],
-            window[1],
-            blocks::BuildBlocks {
-                size: blocks::DEFAULT_BLOCK,
-            },
-        );
-        Ok(Renderer {
+        let r = Renderer {
             volume,
             window,
-            blocks,
-            max_gradient: std::sync::OnceLock::new(),
-        })
+            derived: std::sync::Mutex::new(Vec::new()),
+        };
+        r.derived(blocks::DEFAULT_BLOCK);
+        Ok(r)
     }
 
     /// The volume.
@@ -328,22 +341,23 @@ impl<'v> Renderer<'v> {
         self.window
     }
 
-    /// The block grid.
-    pub fn blocks(&self) -> &BlockGrid {
-        &self.blocks
-    }
-
-    /// Largest gradient component per block (built on first use).
-    pub fn max_gradient(&self) -> &[f32] {
-        self.max_gradient.get_or_init(|| {
-            self.volume.visit(
-                self.window[0],
-                self.window[1],
-                blocks::BuildMaxGradient {
-                    size: self.blocks.size,
-                },
-            )
-        })
+    /// The derived structures for blocks of `size` cells.
+    fn derived(&self, size: usize) -> Arc<Derived> {
+        // A poisoned lock only means another render panicked while building;
+        // the list itself is always consistent.
+        let mut list = self.derived.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, d)) = list.iter().find(|(s, _)| *s == size) {
+            return d.clone();
+        }
+        let blocks =
+            self.volume
+                .visit(self.window[0], self.window[1], blocks::BuildBlocks { size });
+        let d = Arc::new(Derived {
+            blocks,
+            max_gradient: std::sync::OnceLock::new(),
+        });
+        list.push((size, d.clone()));
+        d
     }
 
     /// Renders with `tf`, seen by `camera`.
@@ -360,6 +374,20 @@ impl<'v> Renderer<'v> {
         let (lo, hi) = volume.world_bounds();
         let cam = Camera::fit(camera, lo, hi, params.width, params.height);
         let unit = volume.spacing().min_element();
+        let derived = self.derived(params.block_size as usize);
+        let max_gradient: &[f32] = if params.method == Method::AdaptiveMax {
+            derived.max_gradient.get_or_init(|| {
+                volume.visit(
+                    self.window[0],
+                    self.window[1],
+                    blocks::BuildMaxGradient {
+                        size: derived.blocks.size,
+                    },
+                )
+            })
+        } else {
+            &[]
+        };
         let job = Job {
             volume,
             lut: Lut::new(tf, params.step),
@@ -367,13 +395,9 @@ impl<'v> Renderer<'v> {
             params,
             unit,
             progress,
-            blocks: &self.blocks,
-            empty: self.blocks.empty_flags(tf),
-            max_gradient: if params.method == Method::AdaptiveMax {
-                self.max_gradient()
-            } else {
-                &[]
-            },
+            blocks: &derived.blocks,
+            empty: derived.blocks.empty_flags(tf),
+            max_gradient,
         };
         let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
         stats.seconds = start.elapsed().as_secs_f64();
