@@ -2,13 +2,14 @@
 //! grouped interpolation, the threshold baseline, jitter — each checked by
 //! numbers.
 
+mod common;
+use common::{max_diff, no_progress};
+
 use glam::Vec3;
 use voxcast::camera::{CameraParams, Projection};
 use voxcast::render::{AdaptiveParams, Method, MethodSpec, RenderParams, RenderStats, Renderer};
 use voxcast::transfer::TransferFunction;
 use voxcast::{metrics, Image, Volume, VoxelData};
-
-fn no_progress(_: usize, _: usize) {}
 
 fn draw(
     vol: &Volume,
@@ -19,14 +20,6 @@ fn draw(
     let s = vol.stats();
     let r = Renderer::new(vol, [s.min, s.max]).unwrap();
     r.render(tf, cam, p, &no_progress).unwrap()
-}
-
-fn max_diff(a: &Image, b: &Image) -> f32 {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0, f32::max)
 }
 
 fn view() -> CameraParams {

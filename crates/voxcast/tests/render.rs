@@ -1,13 +1,14 @@
 //! Renderer tests that assert numbers: analytic slabs, compositing orders,
 //! early termination bounds, the axis convention, determinism.
 
+mod common;
+use common::{max_diff, no_progress};
+
 use glam::Vec3;
 use voxcast::camera::{CameraParams, Projection};
 use voxcast::render::{render, OpticalModel, Order, RenderParams};
 use voxcast::transfer::{srgb_to_linear, TransferFunction};
 use voxcast::{Image, Volume, VoxelData};
-
-fn no_progress(_: usize, _: usize) {}
 
 fn constant_tf(gray: f32, alpha: f32) -> TransferFunction {
     TransferFunction {
@@ -99,14 +100,6 @@ fn homogeneous_slab_matches_beer_lambert() {
     let a_step = 1.0 - (-sigma * 0.5).exp();
     let want = c * a_step * (length / 0.5);
     assert!((img.get(16, 16)[0] as f64 - want.min(f64::MAX)).abs() < 1e-3);
-}
-
-fn max_diff(a: &Image, b: &Image) -> f32 {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0, f32::max)
 }
 
 #[test]

@@ -952,14 +952,7 @@ pub fn read_q_variable(path: &Path, dims: [usize; 3], n: usize) -> Result<Vec<f3
             "bad record markers (not a PLOT3D .q file?)",
         ));
     }
-    let d = [le_i32(&h, 4), le_i32(&h, 8), le_i32(&h, 12)];
-    if d.map(|x| x as i64) != dims.map(|x| x as i64) {
-        return Err(Error::format(
-            path,
-            "dims",
-            format!("{d:?} but the mesh has {dims:?} nodes"),
-        ));
-    }
+    check_plot3d_dims(path, &h, dims)?;
     let np = dims[0] * dims[1] * dims[2];
     let nq = (le_i32(&h, 44).max(0) as u64) / (4 * np as u64);
     if nq == 0 || le_i32(&h, 44) as u64 != nq * 4 * np as u64 {
@@ -985,11 +978,9 @@ pub fn read_q_variable(path: &Path, dims: [usize; 3], n: usize) -> Result<Vec<f3
         .collect())
 }
 
-/// The iblank array of a PLOT3D `.xyz` file (0 = all 8 cells round the node are solid).
-pub fn read_xyz_iblank(path: &Path, dims: [usize; 3]) -> Result<Vec<i32>> {
-    let (mut r, len) = open_data(path, "XYZ", path)?;
-    let h = read_at(&mut r, path, len, 0, 24, "header")?;
-    let d = [le_i32(&h, 4), le_i32(&h, 8), le_i32(&h, 12)];
+/// Checks the node dims in a PLOT3D header (`.q` or `.xyz`) against the mesh.
+fn check_plot3d_dims(path: &Path, h: &[u8], dims: [usize; 3]) -> Result<()> {
+    let d = [le_i32(h, 4), le_i32(h, 8), le_i32(h, 12)];
     if d.map(|x| x as i64) != dims.map(|x| x as i64) {
         return Err(Error::format(
             path,
@@ -997,6 +988,14 @@ pub fn read_xyz_iblank(path: &Path, dims: [usize; 3]) -> Result<Vec<i32>> {
             format!("{d:?} but the mesh has {dims:?} nodes"),
         ));
     }
+    Ok(())
+}
+
+/// The iblank array of a PLOT3D `.xyz` file (0 = all 8 cells round the node are solid).
+pub fn read_xyz_iblank(path: &Path, dims: [usize; 3]) -> Result<Vec<i32>> {
+    let (mut r, len) = open_data(path, "XYZ", path)?;
+    let h = read_at(&mut r, path, len, 0, 24, "header")?;
+    check_plot3d_dims(path, &h, dims)?;
     let np = dims[0] * dims[1] * dims[2];
     let b = read_at(&mut r, path, len, 24 + 12 * np as u64, 4 * np, "iblank")?;
     Ok(b.chunks_exact(4)
