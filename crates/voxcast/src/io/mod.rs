@@ -12,6 +12,7 @@ pub mod image_stack;
 pub mod metaimage;
 pub mod nifti;
 pub mod nrrd;
+pub mod nrrd_write;
 pub mod raw;
 #[cfg(test)]
 mod test_support;
@@ -67,6 +68,8 @@ pub enum Format {
     Raw,
     Vdb,
     Fds,
+    /// A frame folder written by a simulator (`series.toml` + frames).
+    Series,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -81,6 +84,9 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     }
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
+        if crate::volume::Series::is_frame_folder(path) {
+            return Ok(Format::Series);
+        }
         return if dicom::folder_has_dicom(path)? {
             Ok(Format::Dicom)
         } else {
@@ -155,6 +161,12 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
         Format::Vdb => vdb::read(path, opts)?,
         Format::Fds => fds::read(path, opts)?,
+        Format::Series => {
+            // One frame of the series: the nearest to `--time`, else the last.
+            let s = crate::volume::Series::open_folder(path)?;
+            let i = opts.time.map(|t| s.nearest(t)).unwrap_or(s.len() - 1);
+            s.load(i, opts)?
+        }
     };
     if let Some(s) = opts.spacing {
         vol.set_spacing(Vec3::from(s))?;

@@ -3,9 +3,11 @@
 //! needs to know where it came from.
 
 mod grid;
+pub mod series;
 mod stats;
 
 pub use grid::{Grid, GridVisitor, Voxel};
+pub use series::{Series, SeriesWriter};
 pub use stats::{Histogram, ValueStats};
 
 use crate::error::{Error, Result};
