@@ -308,7 +308,7 @@ impl SeriesWriter {
     /// Appends `volume` as the frame at `time` (greater than the last).
     pub fn push(&mut self, volume: &Volume, time: f64) -> Result<PathBuf> {
         if let Some(last) = self.manifest.frames.last() {
-            if !(time > last.time) {
+            if time.is_nan() || time <= last.time {
                 return Err(Error::invalid(format!(
                     "frame time {time} must be greater than the last ({})",
                     last.time
