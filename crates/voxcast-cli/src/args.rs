@@ -49,6 +49,9 @@ Examples:
   voxcast render ct_folder/ --tf ct-bone -o bone.png
   voxcast render vol.raw --raw-dims 256,256,128 --raw-type u16 --spacing 0.5,0.5,1
   voxcast render --scene saved.toml -o again.png   # reproduce a saved render
+  voxcast render ../shared/data/fds_room/room_smoke.smv --time 30 --shadows on
+                                                   # FDS soot over the room's obstructions
+  voxcast render frames/ --geometry room.toml      # smoke over boxes, planes, OBJ meshes
 
 Axes: at azimuth 0, elevation 0 the camera looks along +y with +x to the right
 and +z up; positive azimuth orbits counter-clockwise seen from +z.";
