@@ -182,3 +182,23 @@ fn truncated_s3d_is_a_clean_error_from_the_cli() {
     fails_with(&o, &["room_smoke_1_1.s3d", "truncated"]);
     assert!(!dir.path().join("x.png").exists());
 }
+
+#[test]
+fn info_lists_the_fds_case_with_its_obstructions() {
+    let Some(smv) = voxcast::testdata::data_path("fds_room/room_smoke.smv") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let o = voxcast(&["info", &smv.to_string_lossy()], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    for needle in [
+        "mesh MESH_0000001: 50×30×25 cells",
+        "121 frames, 0 .. 60 s (room_smoke_1_1.s3d)",
+        "times 10, 20.01, 30.01, 40, 50, 60 s",
+        "obstructions: 22 (1 zero-volume skipped)",
+        "Table top: 2..3.2 × 1..1.8 × 0.7..0.8 m",
+    ] {
+        assert!(out.contains(needle), "`{needle}` not in:\n{out}");
+    }
+}
