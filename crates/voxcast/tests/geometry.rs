@@ -559,3 +559,44 @@ fn fds_case_brings_its_obstructions() {
     let opaque0 = without.pixels.iter().filter(|p| p[3] == 1.0).count();
     assert!(opaque > opaque0 + 100, "{opaque} vs {opaque0}");
 }
+
+#[test]
+fn vertex_normals_shade_smoothly_by_barycentric_interpolation() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("t.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nvn 1 0 1\nvn 0 1 1\nf 1//1 2//2 3//3\n",
+    )
+    .unwrap();
+    let file = dir.path().join("g.toml");
+    std::fs::write(&file, "[[mesh]]\npath = \"t.obj\"\n").unwrap();
+    let g = Geometry::load(&file).unwrap();
+    let n = |x: f32, y: f32| {
+        g.hit(Vec3::new(x, y, 1.0), -Vec3::Z, 0.0, 9.0)
+            .unwrap()
+            .normal
+    };
+    let (na, nb, nc) = (
+        Vec3::Z,
+        Vec3::new(1.0, 0.0, 1.0).normalize(),
+        Vec3::new(0.0, 1.0, 1.0).normalize(),
+    );
+    // At (x, y) the barycentrics are (1 − x − y, x, y).
+    for (x, y) in [(0.25, 0.25), (0.6, 0.1), (0.1, 0.7), (0.01, 0.01)] {
+        let want = (na * (1.0 - x - y) + nb * x + nc * y).normalize();
+        assert!(
+            (n(x, y) - want).length() < 1e-5,
+            "({x},{y}): {} vs {want}",
+            n(x, y)
+        );
+    }
+    // Without `vn` the face is flat.
+    std::fs::write(
+        dir.path().join("t.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let g = Geometry::load(&file).unwrap();
+    let h = g.hit(Vec3::new(0.6, 0.1, 1.0), -Vec3::Z, 0.0, 9.0).unwrap();
+    assert_eq!(h.normal, Vec3::Z);
+}

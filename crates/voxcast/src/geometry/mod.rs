@@ -86,6 +86,9 @@ pub struct Geometry {
     /// Where the shapes came from, for messages.
     pub sources: Vec<String>,
     counts: [usize; 4],
+    /// Per shape: vertex normals of a smooth triangle (Phong-interpolated
+    /// shading normal), else `None`.
+    vertex_normals: Vec<Option<[Vec3; 3]>>,
 }
 
 /// Collects shapes before the BVH is built.
@@ -97,6 +100,8 @@ struct Parts {
     sources: Vec<String>,
     /// Boxes, planes, meshes, triangles.
     counts: [usize; 4],
+    /// Vertex normals of smooth triangles, by shape index.
+    smooth: Vec<(usize, [Vec3; 3])>,
 }
 
 fn linear(c: [f32; 3]) -> Vec3 {
@@ -164,14 +169,17 @@ impl Parts {
                 ));
             }
             let path = base.join(&m.path);
-            let tris =
+            let mesh =
                 obj::load_obj(&path, m.scale, Vec3::from(m.translate)).map_err(|e| match e {
                     Error::Invalid(msg) => bad(format!("mesh[{i}]"), &msg),
                     e => e,
                 })?;
-            self.counts[3] += tris.len();
-            for t in tris {
+            self.counts[3] += mesh.triangles.len();
+            for (k, t) in mesh.triangles.into_iter().enumerate() {
                 self.push(Shape::Tri(t), m.color);
+                if let Some(n) = mesh.normals.get(k) {
+                    self.smooth.push((self.shapes.len() - 1, *n));
+                }
             }
             self.counts[2] += 1;
         }
@@ -185,7 +193,15 @@ impl Parts {
 
     fn build(self) -> Geometry {
         let bounds: Vec<Aabb> = self.shapes.iter().map(Shape::bounds).collect();
+        let mut vertex_normals = Vec::new();
+        if !self.smooth.is_empty() {
+            vertex_normals = vec![None; self.shapes.len()];
+            for (i, n) in self.smooth {
+                vertex_normals[i] = Some(n);
+            }
+        }
         Geometry {
+            vertex_normals,
             bvh: Bvh::build(&bounds),
             shapes: self.shapes,
             albedo: self.albedo,
@@ -344,7 +360,7 @@ impl Geometry {
             })
             .map(|(t, (n, i))| Hit {
                 t,
-                normal: n,
+                normal: self.shading_normal(i, o + d * t, n),
                 albedo: self.albedo[i],
             });
         for (p, c) in &self.infinite {
@@ -358,6 +374,28 @@ impl Geometry {
             }
         }
         best
+    }
+
+    /// The normal to shade shape `i` with at `p`: its vertex normals
+    /// interpolated by the barycentric coordinates of `p` (Phong 1975), or
+    /// the geometric normal `n`.
+    #[inline]
+    fn shading_normal(&self, i: usize, p: Vec3, n: Vec3) -> Vec3 {
+        let (Some(Some(vn)), Shape::Tri(t)) = (self.vertex_normals.get(i), &self.shapes[i]) else {
+            return n;
+        };
+        let (e1, e2, q) = (t.b - t.a, t.c - t.a, p - t.a);
+        // Barycentrics from the sub-triangle areas.
+        let c = e1.cross(e2);
+        let inv = 1.0 / c.length_squared();
+        let u = q.cross(e2).dot(c) * inv;
+        let v = e1.cross(q).dot(c) * inv;
+        let s = vn[0] * (1.0 - u - v) + vn[1] * u + vn[2] * v;
+        if s.length_squared() > 0.0 {
+            s.normalize()
+        } else {
+            n
+        }
     }
 
     /// Whether anything lies on `o + d·t`, `t_min < t < t_max` (shadow rays).

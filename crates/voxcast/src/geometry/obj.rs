@@ -1,15 +1,25 @@
 //! Wavefront OBJ triangle meshes (read with the `tobj` crate). Polygons are
-//! triangulated; points, lines, texture coordinates, normals and materials
-//! are ignored (the colour comes from the geometry file, normals are the
-//! faces' own, which suits the flat-faced furniture of indoor scenes).
+//! triangulated; points, lines, texture coordinates and materials are
+//! ignored (the colour comes from the geometry file). Vertex normals (`vn`),
+//! where every vertex of a mesh has one, shade the mesh smoothly; without
+//! them faces are flat, which suits the furniture of indoor scenes.
 
 use super::shapes::Triangle;
 use crate::error::{Error, Result};
 use glam::Vec3;
 use std::path::Path;
 
+/// A mesh's triangles and, when the file gives them, unit vertex normals
+/// per triangle (same order).
+#[derive(Clone, Debug, Default)]
+pub struct ObjMesh {
+    pub triangles: Vec<Triangle>,
+    /// Empty, or one `[n_a, n_b, n_c]` per triangle.
+    pub normals: Vec<[Vec3; 3]>,
+}
+
 /// Reads the triangles of `path`, each vertex placed at `p·scale + translate`.
-pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<Vec<Triangle>> {
+pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<ObjMesh> {
     if !(scale.is_finite() && scale > 0.0 && translate.is_finite()) {
         return Err(Error::invalid(format!(
             "mesh {}: scale must be positive and translate finite",
@@ -20,9 +30,9 @@ pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<Vec<Triangle
     let mut reader = std::io::BufReader::new(file);
     let opts = tobj::LoadOptions {
         triangulate: true,
+        single_index: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     // A parser bug must not take the program down with it: user files are
     // untrusted input.
@@ -51,8 +61,26 @@ pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<Vec<Triangle
         Error::format(path, field, what)
     })?;
     let mut tris = Vec::new();
+    let mut normals = Vec::new();
+    // Smooth only when every vertex of every mesh has a usable normal.
+    let smooth = models.iter().all(|m| {
+        m.mesh.normals.len() == m.mesh.positions.len()
+            && m.mesh.normals.chunks_exact(3).all(|n| {
+                let n = Vec3::new(n[0], n[1], n[2]);
+                n.is_finite() && n.length_squared() > 0.0
+            })
+    });
     for m in &models {
         let p = &m.mesh.positions;
+        let normal = |i: u32| {
+            let i = 3 * i as usize;
+            Vec3::new(
+                m.mesh.normals[i],
+                m.mesh.normals[i + 1],
+                m.mesh.normals[i + 2],
+            )
+            .normalize()
+        };
         let vertex = |i: u32| -> Result<Vec3> {
             let i = i as usize;
             let v = p
@@ -79,6 +107,9 @@ pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<Vec<Triangle
             // Degenerate triangles have no normal and cover nothing.
             if (t.b - t.a).cross(t.c - t.a).length_squared() > 0.0 {
                 tris.push(t);
+                if smooth {
+                    normals.push([normal(f[0]), normal(f[1]), normal(f[2])]);
+                }
             }
         }
     }
@@ -89,7 +120,10 @@ pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<Vec<Triangle
             "no triangles: an OBJ mesh needs `v` vertex lines and `f` face lines",
         ));
     }
-    Ok(tris)
+    Ok(ObjMesh {
+        triangles: tris,
+        normals,
+    })
 }
 
 #[cfg(test)]
@@ -110,8 +144,12 @@ mod tests {
             "quad.obj",
             "# a unit square\nmtllib none.mtl\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\n",
         );
-        let t = load_obj(&p, 2.0, Vec3::new(0.0, 0.0, 5.0)).unwrap();
+        let m = load_obj(&p, 2.0, Vec3::new(0.0, 0.0, 5.0)).unwrap();
+        let t = &m.triangles;
         assert_eq!(t.len(), 2);
+        // Every vertex has `vn 0 0 1`: smooth normals, all +z.
+        assert_eq!(m.normals.len(), 2);
+        assert!(m.normals.iter().flatten().all(|n| *n == Vec3::Z));
         let area: f32 = t
             .iter()
             .map(|t| 0.5 * (t.b - t.a).cross(t.c - t.a).length())
@@ -124,7 +162,9 @@ mod tests {
             "rel.obj",
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\n",
         );
-        assert_eq!(load_obj(&p, 1.0, Vec3::ZERO).unwrap().len(), 1);
+        let m = load_obj(&p, 1.0, Vec3::ZERO).unwrap();
+        assert_eq!(m.triangles.len(), 1);
+        assert!(m.normals.is_empty()); // no `vn`: flat
     }
 
     #[test]
