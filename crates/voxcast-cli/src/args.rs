@@ -49,6 +49,9 @@ Examples:
   voxcast render ct_folder/ --tf ct-bone -o bone.png
   voxcast render vol.raw --raw-dims 256,256,128 --raw-type u16 --spacing 0.5,0.5,1
   voxcast render --scene saved.toml -o again.png   # reproduce a saved render
+  voxcast render ../shared/data/fds_room/room_smoke.smv --time 30 --shadows on
+                                                   # FDS soot over the room's obstructions
+  voxcast render frames/ --geometry room.toml      # smoke over boxes, planes, OBJ meshes
 
 Axes: at azimuth 0, elevation 0 the camera looks along +y with +x to the right
 and +z up; positive azimuth orbits counter-clockwise seen from +z.";
@@ -236,6 +239,30 @@ pub struct SceneArgs {
     /// Random seed (stochastic methods and jitter).
     #[arg(long, help_heading = "Ray casting")]
     pub seed: Option<u64>,
+
+    /// Opaque geometry the smoke is composited over (rays stop at the first
+    /// surface): a geometry TOML file of boxes, planes and OBJ meshes in the
+    /// volume's world coordinates; `auto` (the default) takes what comes
+    /// with the input — geometry.toml in the input's folder (written by
+    /// `voxcast simulate`) or the OBST boxes of an FDS .smv; `none` turns
+    /// all geometry off.
+    #[arg(long, value_name = "FILE|auto|none", help_heading = "Geometry")]
+    pub geometry: Option<String>,
+    /// Shadows on the geometry: the key light is dimmed by the smoke between
+    /// the surface and the light (Beer–Lambert) and blocked by other shapes:
+    /// on or off (default off).
+    #[arg(long, value_name = "on|off", help_heading = "Geometry")]
+    pub shadows: Option<String>,
+    /// Direction towards the key light that lights the geometry, in world
+    /// coordinates, e.g. 0,0,1 for straight above (default: above and to
+    /// the left, behind the camera).
+    #[arg(
+        long,
+        value_name = "X,Y,Z",
+        allow_hyphen_values = true,
+        help_heading = "Geometry"
+    )]
+    pub light: Option<String>,
 }
 
 #[derive(Args)]
@@ -456,6 +483,43 @@ impl SceneArgs {
             r.seed = s;
         }
         r.validate()?;
+        self.apply_geometry(scene)?;
+        Ok(())
+    }
+
+    /// Applies `--geometry`, `--shadows` and `--light`.
+    fn apply_geometry(&self, scene: &mut Scene) -> Result<()> {
+        let g = &mut scene.geometry;
+        match self.geometry.as_deref() {
+            None => {}
+            Some("none") => {
+                g.auto = false;
+                g.file = None;
+                g.boxes.clear();
+                g.planes.clear();
+                g.meshes.clear();
+            }
+            Some("auto") => {
+                g.auto = true;
+                g.file = None;
+            }
+            Some(f) => {
+                if !std::path::Path::new(f).is_file() {
+                    bail!("--geometry {f}: no such file (expected a geometry TOML file, auto or none)");
+                }
+                g.file = Some(f.to_string());
+            }
+        }
+        if let Some(s) = &self.shadows {
+            g.shadows = on_off("shadows", s)?;
+        }
+        if let Some(l) = &self.light {
+            let v: [f32; 3] = triple(l, "--light")?;
+            if !v.iter().all(|x| x.is_finite()) || v == [0.0; 3] {
+                bail!("--light {l}: expected a non-zero direction X,Y,Z");
+            }
+            g.light = Some(v);
+        }
         Ok(())
     }
 

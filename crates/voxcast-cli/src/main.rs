@@ -212,7 +212,11 @@ fn loaded(scene: &Scene, prepared: &voxcast::scene::Prepared, since: Instant) ->
         since.elapsed().as_secs_f64(),
         prepared.window[0],
         prepared.window[1]
-    )
+    ) + &prepared
+        .geometry
+        .as_ref()
+        .map(|g| format!("\n{}", g.describe()))
+        .unwrap_or_default()
 }
 
 /// Refuses to write over an input file, into a missing folder, or with an

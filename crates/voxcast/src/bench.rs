@@ -256,6 +256,10 @@ pub fn reference_key(scene: &Scene, prepared: &Prepared) -> u64 {
         h.write(&x.to_bits().to_le_bytes());
     }
     h.write(&voxel_hash(v.data()).to_le_bytes());
+    // Geometry found through the input's path is not in the scene's TOML.
+    if let Some(g) = &prepared.geometry {
+        h.write(&g.fingerprint().to_le_bytes());
+    }
     h.finish()
 }
 
@@ -609,7 +613,8 @@ pub fn run(
     ref_params.validate()?;
 
     let t = Instant::now();
-    let renderer = Renderer::new(&prepared.volume, prepared.window)?;
+    let renderer =
+        Renderer::new(&prepared.volume, prepared.window)?.with_geometry(prepared.geometry.clone());
     let setup_ms = t.elapsed().as_secs_f64() * 1e3;
 
     let key = reference_key(scene, prepared);
@@ -1100,6 +1105,7 @@ mod tests {
             volume: edited,
             tf: prepared.tf.clone(),
             window: prepared.window,
+            geometry: None,
         };
         assert_ne!(reference_key(&scene, &p), k);
     }

@@ -10,6 +10,7 @@ pub mod bench;
 pub mod builtin;
 pub mod camera;
 pub mod error;
+pub mod geometry;
 pub mod image;
 pub mod io;
 pub mod metrics;

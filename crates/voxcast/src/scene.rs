@@ -29,10 +29,15 @@
 //! shading = true
 //! background = [0.0, 0.0, 0.0]
 //! seed = 0
+//!
+//! [geometry]               # opaque geometry (see geometry::file); left out: auto
+//! file = "room.toml"
+//! shadows = true
 //! ```
 
 use crate::camera::CameraParams;
 use crate::error::{Error, Result};
+use crate::geometry::{Geometry, GeometrySpec};
 use crate::image::{atomic_write, Image};
 use crate::io::OpenOptions;
 use crate::render::{RenderParams, RenderStats};
@@ -98,6 +103,9 @@ pub struct Scene {
     pub camera: CameraParams,
     #[serde(default)]
     pub render: RenderParams,
+    /// Opaque geometry: a file, inline shapes, or what comes with the input.
+    #[serde(default, skip_serializing_if = "GeometrySpec::is_default")]
+    pub geometry: GeometrySpec,
 }
 
 /// A scene with its volume loaded and its transfer function resolved.
@@ -105,6 +113,8 @@ pub struct Prepared {
     pub volume: Volume,
     pub tf: TransferFunction,
     pub window: [f32; 2],
+    /// Opaque geometry, if the scene has any.
+    pub geometry: Option<std::sync::Arc<Geometry>>,
 }
 
 impl Scene {
@@ -126,6 +136,12 @@ impl Scene {
         if TransferFunction::preset(&scene.transfer.tf).is_none() && scene.transfer.tf != "auto" {
             scene.transfer.tf = join(base, &scene.transfer.tf);
         }
+        if let Some(f) = &mut scene.geometry.file {
+            *f = join(base, f);
+        }
+        for m in &mut scene.geometry.meshes {
+            m.path = join(base, &m.path);
+        }
         scene
             .render
             .validate()
@@ -143,6 +159,12 @@ impl Scene {
         }
         if s.map_is_file() {
             s.transfer.tf = relative_to(Path::new(&s.transfer.tf), base);
+        }
+        if let Some(f) = &mut s.geometry.file {
+            *f = relative_to(Path::new(f), base);
+        }
+        for m in &mut s.geometry.meshes {
+            m.path = relative_to(Path::new(&m.path), base);
         }
         let text = toml::to_string(&s)
             .map_err(|e| Error::invalid(format!("cannot write the scene: {e}")))?;
@@ -191,7 +213,18 @@ impl Scene {
             None => TransferFunction::resolve(&self.transfer.tf, &volume)?,
         };
         let window = tf.window_for(&volume, self.transfer.window);
-        Ok(Prepared { volume, tf, window })
+        let geometry = self.load_geometry()?.map(std::sync::Arc::new);
+        Ok(Prepared {
+            volume,
+            tf,
+            window,
+            geometry,
+        })
+    }
+
+    /// The scene's opaque geometry (`None` when it has none).
+    pub fn load_geometry(&self) -> Result<Option<Geometry>> {
+        Geometry::for_scene(&self.geometry, &self.input.path, Path::new(""))
     }
 
     /// The same scene with the transfer function written out inline and the
@@ -210,14 +243,9 @@ impl Scene {
         prepared: &Prepared,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<(Image, RenderStats)> {
-        crate::render::render(
-            &prepared.volume,
-            &prepared.tf,
-            prepared.window,
-            &self.camera,
-            &self.render,
-            progress,
-        )
+        crate::render::Renderer::new(&prepared.volume, prepared.window)?
+            .with_geometry(prepared.geometry.clone())
+            .render(&prepared.tf, &self.camera, &self.render, progress)
     }
 }
 

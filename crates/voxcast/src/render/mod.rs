@@ -9,6 +9,7 @@ pub mod optics;
 mod ray;
 pub mod shading;
 pub mod stats;
+mod surface;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
@@ -297,6 +298,8 @@ pub struct Renderer<'v> {
     window: [f32; 2],
     /// Derived structures per block size, built on first use.
     derived: std::sync::Mutex<Vec<(usize, Arc<Derived>)>>,
+    /// Opaque geometry rays stop at.
+    geometry: Option<Arc<crate::geometry::Geometry>>,
 }
 
 /// What a block size derives from the volume: the block grid, and the
@@ -326,9 +329,17 @@ impl<'v> Renderer<'v> {
             volume,
             window,
             derived: std::sync::Mutex::new(Vec::new()),
+            geometry: None,
         };
         r.derived(blocks::DEFAULT_BLOCK);
         Ok(r)
+    }
+
+    /// Adds opaque geometry (world coordinates) that rays stop at; the
+    /// camera then frames the volume and the geometry's bounds together.
+    pub fn with_geometry(mut self, geometry: Option<Arc<crate::geometry::Geometry>>) -> Self {
+        self.geometry = geometry.filter(|g| !g.is_empty());
+        self
     }
 
     /// The volume.
@@ -371,7 +382,10 @@ impl<'v> Renderer<'v> {
         params.validate()?;
         let start = Instant::now();
         let volume = self.volume;
-        let (lo, hi) = volume.world_bounds();
+        let (mut lo, mut hi) = volume.world_bounds();
+        if let Some((glo, ghi)) = self.geometry.as_ref().and_then(|g| g.bounds()) {
+            (lo, hi) = (lo.min(glo), hi.max(ghi));
+        }
         let cam = Camera::fit(camera, lo, hi, params.width, params.height);
         let unit = volume.spacing().min_element();
         let derived = self.derived(params.block_size as usize);
@@ -398,6 +412,11 @@ impl<'v> Renderer<'v> {
             blocks: &derived.blocks,
             empty: derived.blocks.empty_flags(tf),
             max_gradient,
+            surface: self.geometry.as_deref().map(|g| surface::SurfaceCtx {
+                geometry: g,
+                light: crate::geometry::SurfaceLight::new(g.light, &cam),
+                shadows: g.shadows,
+            }),
         };
         let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
         stats.seconds = start.elapsed().as_secs_f64();
@@ -415,6 +434,7 @@ struct Job<'a> {
     params: &'a RenderParams,
     unit: f32,
     progress: &'a (dyn Fn(usize, usize) + Sync),
+    surface: Option<surface::SurfaceCtx<'a>>,
 }
 
 impl GridVisitor for Job<'_> {
@@ -481,6 +501,7 @@ impl Job<'_> {
             threshold: p.threshold,
             threshold_steps: p.threshold.steps.map(|s| s * self.unit),
             threshold_alphas: &threshold_alphas,
+            surface: self.surface,
         };
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);

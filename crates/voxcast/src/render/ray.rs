@@ -51,6 +51,8 @@ pub(super) struct RayCtx<'a, T> {
     pub threshold: ThresholdParams,
     pub threshold_steps: [f32; 3],
     pub threshold_alphas: &'a [Box<[f32; LUT_SIZE]>],
+    /// Opaque geometry the ray may stop at (S0 Fig. 9–13).
+    pub surface: Option<super::surface::SurfaceCtx<'a>>,
 }
 
 /// A sample evaluated but not yet composited (its stretch of ray is known
@@ -87,7 +89,18 @@ impl Acc<'_> {
         }
     }
 
-    fn finish(mut self) -> Vec4 {
+    /// The composite, over the opaque surface colour `behind` if the ray
+    /// ended on one.
+    fn finish(mut self, behind: Option<Vec3>) -> Vec4 {
+        if let Some(s) = behind {
+            if self.back.is_some() {
+                // Back to front starts from the opaque surface.
+                self.c = s;
+                self.a = 1.0;
+            } else {
+                over_front(&mut self.c, &mut self.a, s, 1.0);
+            }
+        }
         if let Some(buf) = self.back.take() {
             for &(em, ab) in buf.iter().rev() {
                 over_back(&mut self.c, &mut self.a, em, ab);
@@ -135,10 +148,26 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     // The ray in voxel coordinates; t stays in world units.
     let o = (origin - ctx.origin_w) * ctx.inv_spacing;
     let d = dir * ctx.inv_spacing;
-    let Some((t_in, t_out)) = super::march::intersect_box(o, Vec3::ONE / d, ctx.box_lo, ctx.box_hi)
-    else {
-        return Vec4::ZERO;
+    // The first opaque surface ends the ray (S0 Fig. 9–13).
+    let hit = ctx.surface.and_then(|s| {
+        s.geometry
+            .hit(origin, dir, 0.0, f32::INFINITY)
+            .map(|h| (s, h))
+    });
+    let surface_rgb = |stats: &mut RenderStats| {
+        hit.map(|(s, h)| super::surface::shade(ctx, &s, origin, dir, &h, &mut stats.interpolations))
     };
+    let Some((t_in, mut t_out)) =
+        super::march::intersect_box(o, Vec3::ONE / d, ctx.box_lo, ctx.box_hi)
+    else {
+        return surface_rgb(stats).map_or(Vec4::ZERO, |c| c.extend(1.0));
+    };
+    if let Some((_, h)) = &hit {
+        if h.t <= t_in {
+            return surface_rgb(stats).map_or(Vec4::ZERO, |c| c.extend(1.0));
+        }
+        t_out = t_out.min(h.t);
+    }
     stats.rays_hit += 1;
     let t0 = match ctx.jitter {
         Some(seed) => t_in + super::march::pixel_random(seed, pixel.0, pixel.1) * ctx.step,
@@ -162,7 +191,8 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     stats.interpolations += n.interpolations;
     stats.gradient_interpolations += 6 * n.shaded;
     stats.early_terminated += terminated as u64;
-    acc.finish()
+    let behind = surface_rgb(stats);
+    acc.finish(behind)
 }
 
 /// Uniform and adaptive marching: per block a step `s = step·2^j` (j = 0 for

@@ -1,0 +1,78 @@
+//! The opaque surface at the end of a ray (S0 Fig. 9–13): the ray's exit
+//! from the volume is clamped to the first geometry hit, the smoke in front
+//! is composited over the surface's lit colour. Optional shadows: the key
+//! light reaching the surface is attenuated by the smoke along a shadow ray
+//! (Beer–Lambert, `T = exp(−∫σ ds)`) and blocked by other shapes.
+
+use super::ray::RayCtx;
+use crate::geometry::{Geometry, Hit, SurfaceLight};
+use crate::transfer::Lut;
+use crate::volume::Voxel;
+use glam::Vec3;
+
+/// What a ray needs to know about the geometry.
+#[derive(Clone, Copy)]
+pub(super) struct SurfaceCtx<'a> {
+    pub geometry: &'a Geometry,
+    pub light: SurfaceLight,
+    pub shadows: bool,
+}
+
+/// The lit linear colour of `hit` on the ray `origin + dir·t` (world).
+#[inline]
+pub(super) fn shade<T: Voxel>(
+    ctx: &RayCtx<'_, T>,
+    s: &SurfaceCtx<'_>,
+    origin: Vec3,
+    dir: Vec3,
+    hit: &Hit,
+    interpolations: &mut u64,
+) -> Vec3 {
+    let mut light = 1.0;
+    if s.shadows {
+        let facing = if hit.normal.dot(dir) > 0.0 {
+            -hit.normal
+        } else {
+            hit.normal
+        };
+        if facing.dot(s.light.to_light) > 0.0 {
+            // Off the surface by a fraction of a voxel, so the shadow ray
+            // does not find the surface it starts on.
+            let p = origin + dir * hit.t + facing * (1e-3 * ctx.unit);
+            light = if s.geometry.occluded(p, s.light.to_light, 0.0, f32::INFINITY) {
+                0.0
+            } else {
+                transmittance(ctx, p, s.light.to_light, interpolations)
+            };
+        }
+    }
+    s.light.shade(hit.albedo, hit.normal, dir, light)
+}
+
+/// Transmittance of the volume from world point `p` along unit `l` to the
+/// volume's edge: midpoint sums of the extinction at the render's base step.
+#[inline]
+pub(super) fn transmittance<T: Voxel>(
+    ctx: &RayCtx<'_, T>,
+    p: Vec3,
+    l: Vec3,
+    interpolations: &mut u64,
+) -> f32 {
+    let o = (p - ctx.origin_w) * ctx.inv_spacing;
+    let d = l * ctx.inv_spacing;
+    let Some((t0, t1)) = super::march::intersect_box(o, Vec3::ONE / d, ctx.box_lo, ctx.box_hi)
+    else {
+        return 1.0;
+    };
+    let n = ((t1 - t0) / ctx.step).ceil().max(1.0);
+    let ds = (t1 - t0) / n;
+    let mut tau = 0.0f32;
+    for k in 0..n as u32 {
+        let v = ctx.grid.sample(o + d * (t0 + (k as f32 + 0.5) * ds));
+        if let Some(i) = Lut::index(v) {
+            tau += ctx.lut.sigma(i);
+        }
+    }
+    *interpolations += n as u64;
+    (-tau * ds / ctx.unit).exp()
+}
