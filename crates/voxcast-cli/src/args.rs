@@ -40,6 +40,9 @@ pub enum Command {
     Compare(CompareArgs),
     /// List transfer-function presets and built-in volumes.
     Presets,
+    /// Simulate smoke (a fire in a room, office or corridor) into a frame folder.
+    #[command(after_long_help = crate::simulate::SIMULATE_HELP)]
+    Simulate(crate::simulate::SimulateArgs),
 }
 
 const RENDER_HELP: &str = "\

@@ -3,6 +3,7 @@
 
 mod args;
 mod chart;
+mod simulate;
 
 use anyhow::{bail, Context, Result};
 use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};
@@ -26,6 +27,7 @@ fn main() {
             presets();
             Ok(())
         }
+        Command::Simulate(a) => simulate::run(a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

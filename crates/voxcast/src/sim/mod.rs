@@ -43,6 +43,11 @@ pub struct FrameStats {
     pub mass: f64,
     pub injected: f64,
     pub outflow: f64,
+    /// Density advection sub-steps over the frame's steps.
+    pub substeps: usize,
+    /// Wall time per phase over the frame's steps (ms): density, temperature,
+    /// velocity advection, forces, pressure projection.
+    pub phase_ms: [f64; 5],
 }
 
 /// Runs `scene` for `frames` frames into the frame folder `dir` (frame 0 is
@@ -89,6 +94,10 @@ pub fn simulate_smoke(
             let s = smoke.step();
             st.cg_iterations += s.solve.iterations;
             st.relative_residual = st.relative_residual.max(s.solve.relative_residual);
+            st.substeps += s.substeps;
+            for (a, b) in st.phase_ms.iter_mut().zip(s.phase_ms) {
+                *a += b;
+            }
         }
         st.step_ms = t0.elapsed().as_secs_f64() * 1e3;
         let t1 = Instant::now();

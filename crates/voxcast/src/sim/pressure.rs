@@ -255,7 +255,7 @@ impl PressureSolver {
             closed,
             tolerance: 1e-5,
             max_iterations: 200,
-            smoothing: 2,
+            smoothing: 1,
         }
     }
 
