@@ -7,6 +7,7 @@
 //! written as PNG/EXR and compared with [`metrics`].
 
 pub mod bench;
+pub mod bench_frames;
 pub mod builtin;
 pub mod camera;
 pub mod error;
