@@ -391,26 +391,27 @@ fn coarsen(fine: &Level) -> Level {
             for i in 0..fx {
                 let f = i + fx * (j + fy * k);
                 let (ci, cj, ck) = (i / 2, j / 2, k / 2);
+                // A fine face at an even index lies inside its aggregate.
                 let cc = ci + cx * (cj + cy * ck);
                 c.diag[cc] += fine.diag[f];
                 // A fine face inside an aggregate cancels twice in the
                 // Galerkin sum; one between aggregates becomes a coarse face.
                 if i + 1 < fx {
-                    if (i + 1) / 2 == ci {
+                    if i % 2 == 0 {
                         c.diag[cc] -= 2.0 * fine.cx[f];
                     } else {
                         c.cx[cc] += fine.cx[f];
                     }
                 }
                 if j + 1 < fy {
-                    if (j + 1) / 2 == cj {
+                    if j % 2 == 0 {
                         c.diag[cc] -= 2.0 * fine.cy[f];
                     } else {
                         c.cy[cc] += fine.cy[f];
                     }
                 }
                 if k + 1 < fz {
-                    if (k + 1) / 2 == ck {
+                    if k % 2 == 0 {
                         c.diag[cc] -= 2.0 * fine.cz[f];
                     } else {
                         c.cz[cc] += fine.cz[f];

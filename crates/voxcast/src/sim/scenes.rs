@@ -346,9 +346,10 @@ impl SmokeScene {
         if !s.center.iter().all(|x| x.is_finite()) || !pos(s.radius) {
             return bad("source", "center must be finite and radius > 0".into());
         }
-        if !(s.density_rate.is_finite() && s.density_rate >= 0.0)
-            || !(s.temperature.is_finite() && s.temperature >= 0.0)
-            || !(s.flicker.is_finite() && (0.0..=1.0).contains(&s.flicker))
+        let non_negative = |x: f32| x.is_finite() && x >= 0.0;
+        if !non_negative(s.density_rate)
+            || !non_negative(s.temperature)
+            || !(0.0..=1.0).contains(&s.flicker)
         {
             return bad(
                 "source",
