@@ -40,6 +40,15 @@ pub enum Command {
     Compare(CompareArgs),
     /// List transfer-function presets and built-in volumes.
     Presets,
+    /// Simulate smoke (a fire in a room, office or corridor) into a frame folder.
+    #[command(after_long_help = crate::simulate::SIMULATE_HELP)]
+    Simulate(crate::simulate::SimulateArgs),
+    /// Render every frame of a series (frame folder, FDS case, volume files) into a GIF, MP4 or PNGs.
+    #[command(after_long_help = crate::animate::ANIMATE_HELP)]
+    Animate(Box<crate::animate::AnimateArgs>),
+    /// Frame rate of each sampling method, frame by frame over a series, with PSNR per frame.
+    #[command(after_long_help = crate::bench_frames::BENCH_FRAMES_HELP)]
+    BenchFrames(Box<crate::bench_frames::BenchFramesArgs>),
 }
 
 const RENDER_HELP: &str = "\

@@ -1,8 +1,12 @@
 //! The `voxcast` command: parses arguments and wires the library together.
 //! No rendering logic lives here.
 
+mod animate;
 mod args;
+mod bench_frames;
 mod chart;
+mod frames_chart;
+mod simulate;
 
 use anyhow::{bail, Context, Result};
 use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};
@@ -26,6 +30,9 @@ fn main() {
             presets();
             Ok(())
         }
+        Command::Simulate(a) => simulate::run(a),
+        Command::Animate(a) => animate::run(*a),
+        Command::BenchFrames(a) => bench_frames::run(*a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -7,6 +7,7 @@
 //! written as PNG/EXR and compared with [`metrics`].
 
 pub mod bench;
+pub mod bench_frames;
 pub mod builtin;
 pub mod camera;
 pub mod error;
@@ -16,6 +17,7 @@ pub mod io;
 pub mod metrics;
 pub mod render;
 pub mod scene;
+pub mod sim;
 pub mod transfer;
 pub mod volume;
 

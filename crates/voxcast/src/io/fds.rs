@@ -1382,6 +1382,63 @@ pub fn read(path: &Path, opts: &OpenOptions) -> Result<Volume> {
     Err(unknown())
 }
 
+/// The times of the quantity [`read`] picks for `opts.variable` (the soot
+/// SMOKE3D file by default), so that a series can walk the case frame by
+/// frame. Only headers are scanned (one slice frame is decoded for its
+/// time list).
+pub fn times(path: &Path, opts: &OpenOptions) -> Result<Vec<f64>> {
+    let smv = parse_smv(path)?;
+    let want = opts
+        .variable
+        .as_deref()
+        .map(str::trim)
+        .filter(|v| !v.is_empty());
+    let (src, name) = match want {
+        Some(v) => split_source(v),
+        None => (None, ""),
+    };
+    let to64 = |t: Vec<f32>| t.into_iter().map(f32_time).collect::<Vec<f64>>();
+    if src.is_none() || src == Some(Source::Smoke3d) {
+        let hit = smv.smoke3d.iter().find(|s| {
+            if want.is_none() || is_soot_alias(name) {
+                s.k_m > 0.0
+            } else {
+                s.quantity.matches(name)
+            }
+        });
+        if let Some(s) = hit {
+            return Ok(to64(
+                s3d_times(&s.file).map_err(|e| missing(path, &s.file, e))?,
+            ));
+        }
+    }
+    if want.is_some() && (src.is_none() || src == Some(Source::Slice)) {
+        if let Some(s) = smv
+            .slices
+            .iter()
+            .find(|s| s.is_3d && s.quantity.matches(name))
+        {
+            let f = read_sf_frame(&s.file, None).map_err(|e| missing(path, &s.file, e))?;
+            return Ok(to64(f.times));
+        }
+    }
+    if want.is_some() && (src.is_none() || src == Some(Source::Plot3d)) {
+        let mut t: Vec<f64> = smv
+            .pl3d
+            .iter()
+            .filter(|p| p.quantities.iter().any(|q| q.matches(name)))
+            .map(|p| p.time)
+            .collect();
+        if !t.is_empty() {
+            t.sort_by(f64::total_cmp);
+            t.dedup();
+            return Ok(t);
+        }
+    }
+    // Nothing matched: `read` gives the error that lists the quantities.
+    read(path, opts).map(|v| vec![v.time.unwrap_or(0.0)])
+}
+
 /// An f32 time as the f64 with the same shortest decimal form (30.008783,
 /// not 30.0087833404541).
 fn f32_time(t: f32) -> f64 {

@@ -159,6 +159,62 @@ impl Series {
         })
     }
 
+    /// Opens any input as a series: a frame folder (by its manifest), an
+    /// FDS `.smv` (the times of the quantity `opts.variable` picks, soot by
+    /// default), a folder or glob of volume files (sorted by name, one
+    /// frame each, at times 0, 1, 2, …), or any single volume (one frame).
+    pub fn open(path: &Path, opts: &OpenOptions) -> Result<Series> {
+        use crate::io::Format;
+        if Series::is_frame_folder(path) {
+            return Series::open_folder(path);
+        }
+        let s = path.to_string_lossy();
+        let is_glob = s.contains(['*', '?', '[']) && !path.exists();
+        if !is_glob && !path.exists() {
+            return Err(Error::io(
+                path,
+                std::io::Error::new(std::io::ErrorKind::NotFound, "no such file or folder"),
+            ));
+        }
+        let volume_file = |p: &Path| {
+            let n = p
+                .file_name()
+                .map(|n| n.to_string_lossy().to_ascii_lowercase())
+                .unwrap_or_default();
+            [
+                ".nrrd", ".nhdr", ".mhd", ".mha", ".vtk", ".nii", ".nii.gz", ".vdb",
+            ]
+            .iter()
+            .any(|e| n.ends_with(e))
+        };
+        let mut files: Vec<PathBuf> = if is_glob {
+            glob::glob(&s)
+                .map_err(|e| Error::invalid(format!("{s}: bad pattern: {e}")))?
+                .filter_map(|p| p.ok())
+                .filter(|p| volume_file(p))
+                .collect()
+        } else if path.is_dir() {
+            std::fs::read_dir(path)
+                .map_err(|e| Error::io(path, e))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| volume_file(p))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        if !files.is_empty() {
+            files.sort();
+            return Series::of_files(path, files);
+        }
+        match crate::io::detect(path, opts)? {
+            Format::Fds => {
+                let times = crate::io::fds::times(path, opts)?;
+                Series::of_times(path, &times, Some("s".into()))
+            }
+            _ => Series::of_files(path, vec![path.to_path_buf()]),
+        }
+    }
+
     /// A series of separate volume files in the order given, at times
     /// 0, 1, 2, … (frame numbers).
     pub fn of_files(source: &Path, files: Vec<PathBuf>) -> Result<Series> {
@@ -378,6 +434,41 @@ mod tests {
         w.push(&frame(1.0), 0.0).unwrap();
         assert_eq!(Series::open_folder(&d).unwrap().len(), 1);
         assert!(!d.join("frame_00002.nrrd").exists());
+    }
+
+    #[test]
+    fn opens_folders_of_files_and_fds_cases_as_series() {
+        let dir = tempfile::tempdir().unwrap();
+        for i in 0..3 {
+            nrrd_write::write(
+                &dir.path().join(format!("v{i}.nrrd")),
+                &frame(i as f32),
+                Encoding::Raw,
+            )
+            .unwrap();
+        }
+        std::fs::write(dir.path().join("notes.txt"), "x").unwrap();
+        let s = Series::open(dir.path(), &OpenOptions::default()).unwrap();
+        assert_eq!(s.len(), 3);
+        assert_eq!(
+            s.load(2, &OpenOptions::default()).unwrap().value(0, 0, 0),
+            2.0
+        );
+        let g = dir.path().join("v*.nrrd");
+        assert_eq!(Series::open(&g, &OpenOptions::default()).unwrap().len(), 3);
+        let one = Series::open(&dir.path().join("v1.nrrd"), &OpenOptions::default()).unwrap();
+        assert_eq!(one.len(), 1);
+        assert!(Series::open(&dir.path().join("nope.nrrd"), &OpenOptions::default()).is_err());
+
+        let Some(smv) = crate::testdata::data_path("fds_room/room_smoke.smv") else {
+            return;
+        };
+        let s = Series::open(&smv, &OpenOptions::default()).unwrap();
+        assert_eq!(s.len(), 121, "soot SMOKE3D frames");
+        let t = s.times();
+        assert!(t.windows(2).all(|w| w[1] > w[0]));
+        let v = s.load(60, &OpenOptions::default()).unwrap();
+        assert_eq!(v.time, Some(t[60]));
     }
 
     #[test]
