@@ -280,8 +280,9 @@ fn empty_space_skipping_and_order_do_not_change_pixels_with_geometry() {
                 name: None,
             },
             PlaneDef {
+                // Facing the camera (planes are one-sided).
                 point: [mid.x, hi.y, mid.z],
-                normal: [0.0, 1.0, 0.0],
+                normal: [0.0, -1.0, 0.0],
                 color: [0.9, 0.8, 0.7],
                 half_extent: None,
                 name: None,

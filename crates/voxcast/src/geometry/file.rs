@@ -11,7 +11,7 @@
 //! name = "desk"             # optional
 //! [[plane]]
 //! point = [0.0, 0.0, 0.0]
-//! normal = [0.0, 0.0, 1.0]
+//! normal = [0.0, 0.0, 1.0]   # seen from this side only (from behind: transparent)
 //! color = [0.5, 0.5, 0.5]
 //! # half_extent = [2.0, 3.0]  optional: a rectangle; axes u, v of geometry::plane_axes
 //! [[mesh]]
@@ -55,7 +55,8 @@ pub struct BoxDef {
 }
 
 /// A plane, infinite or a rectangle of `half_extent` along its in-plane
-/// axes (see [`super::plane_axes`]).
+/// axes (see [`super::plane_axes`]); visible only from the side its normal
+/// points to.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PlaneDef {

@@ -82,7 +82,10 @@ impl Aabb {
     }
 }
 
-/// A plane through `point` with unit `normal`; bounded to the rectangle
+/// A plane through `point` with unit `normal`, seen only from the side its
+/// normal points to (from behind it is transparent: walls of a room with
+/// inward normals hide nothing from a camera outside — the cut-away view of
+/// indoor scenes); bounded to the rectangle
 /// `|u·(p − point)| ≤ half_extent[0]`, `|v·(p − point)| ≤ half_extent[1]`
 /// when `half_extent` is set, with the in-plane axes of [`plane_axes`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -131,7 +134,8 @@ impl Plane {
     #[inline]
     pub fn hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<(f32, Vec3)> {
         let den = self.normal.dot(d);
-        if den == 0.0 {
+        // One-sided: only rays travelling against the normal hit.
+        if den >= 0.0 {
             return None;
         }
         let t = self.normal.dot(self.point - o) / den;
@@ -241,6 +245,8 @@ mod tests {
         assert_eq!(n, Vec3::Z);
         assert!(p.hit(Vec3::new(0.0, 0.0, 5.0), Vec3::X, 0.0, 1e9).is_none());
         assert!(p.hit(Vec3::new(0.0, 0.0, 5.0), -d, 0.0, 1e9).is_none());
+        // One-sided: from below, the plane lets the ray through.
+        assert!(p.hit(Vec3::new(0.0, 0.0, -5.0), -d, 0.0, 1e9).is_none());
         // Floor axes: u = +x, v = +y; half extents 2 × 1.
         let r = Plane::new(Vec3::ZERO, Vec3::Z, Some([2.0, 1.0]));
         assert_eq!((r.u, r.v), (Vec3::X, Vec3::Y));
