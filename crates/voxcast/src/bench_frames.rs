@@ -80,7 +80,8 @@ pub fn run(
         let v = series.load(i, &scene.input.options)?;
         let time = v.time.unwrap_or(i as f64);
         let prepared = scene.prepare_with(v)?;
-        let renderer = Renderer::new(&prepared.volume, prepared.window)?;
+        let renderer = Renderer::new(&prepared.volume, prepared.window)?
+            .with_geometry(prepared.geometry.clone());
         let (reference, _) =
             renderer.render(&prepared.tf, &scene.camera, &ref_params, &|_, _| {})?;
         let params: Vec<_> = methods
