@@ -6,7 +6,9 @@
 pub mod blocks;
 pub mod march;
 pub mod optics;
+pub mod phase;
 mod ray;
+pub mod rng;
 pub mod shading;
 pub mod stats;
 
