@@ -236,6 +236,11 @@ pub struct SceneArgs {
     /// Random seed (stochastic methods and jitter).
     #[arg(long, help_heading = "Ray casting")]
     pub seed: Option<u64>,
+    /// Samples per pixel of the stochastic methods (jitter, stratified, mc,
+    /// importance, single-scatter, path): each pass draws new random
+    /// positions and the passes are averaged, so noise falls as 1/√N.
+    #[arg(long, value_name = "N", help_heading = "Ray casting")]
+    pub spp: Option<u32>,
 }
 
 #[derive(Args)]
@@ -260,7 +265,11 @@ pub struct RenderArgs {
     /// Sampling method along rays: uniform (equal steps), adaptive (S0: a step
     /// per block from the derivative at its midpoint and the distance),
     /// adaptive-max (the same from the block's largest derivative) or
-    /// threshold (Zeng 2018: the step follows the value's range); append
+    /// threshold (Zeng 2018: the step follows the value's range); the
+    /// Monte-Carlo marchers of S1 (use with --spp N): jitter (one random
+    /// offset per ray), stratified (one random position per step), mc
+    /// (uniformly random positions, S1 eq. 5–6), importance (positions drawn
+    /// where the transfer function is opaque, S1 eq. 7); append
     /// +grouped for S0's grouped interpolation, +noskip to turn empty-space
     /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive]
     /// and [render.threshold] in a scene file.
@@ -290,7 +299,7 @@ pub struct BenchArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Methods to compare, comma-separated: uniform, adaptive, adaptive-max,
-    /// threshold, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
+    /// threshold, jitter, stratified, mc, importance, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
     /// speed-ups) is added when missing.
     #[arg(long, value_name = "LIST", default_value = DEFAULT_METHODS)]
     pub methods: String,
@@ -454,6 +463,9 @@ impl SceneArgs {
         }
         if let Some(s) = self.seed {
             r.seed = s;
+        }
+        if let Some(n) = self.spp {
+            r.spp = n;
         }
         r.validate()?;
         Ok(())

@@ -11,6 +11,7 @@ mod ray;
 pub mod rng;
 pub mod shading;
 pub mod stats;
+mod stochastic;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
@@ -48,15 +49,43 @@ pub enum Method {
     /// Zeng et al. 2018: the step depends on the value range the current
     /// sample falls into.
     Threshold,
+    /// Uniform steps from one random offset per ray (a golden-ratio sequence
+    /// over the `spp` passes): no wood grain.
+    Jitter,
+    /// S1: one random position in each step interval.
+    Stratified,
+    /// S1 eqs. 5–6: ⌈L/step⌉ uniformly random positions on the whole ray.
+    Mc,
+    /// S1 eq. 7: positions drawn from a pdf following the TF opacity of the
+    /// blocks the ray crosses, weighted by 1/(n·p(x)).
+    Importance,
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 8] = [
         Method::Uniform,
         Method::Adaptive,
         Method::AdaptiveMax,
         Method::Threshold,
+        Method::Jitter,
+        Method::Stratified,
+        Method::Mc,
+        Method::Importance,
     ];
+
+    /// The methods whose sample positions are random (S1), which
+    /// progressive `spp` passes average.
+    pub fn is_stochastic(self) -> bool {
+        matches!(
+            self,
+            Method::Jitter | Method::Stratified | Method::Mc | Method::Importance
+        )
+    }
+
+    /// The marchers of `render/stochastic.rs`.
+    pub fn is_monte_carlo(self) -> bool {
+        matches!(self, Method::Stratified | Method::Mc | Method::Importance)
+    }
 
     /// The name used on the command line and in scene files.
     pub fn name(self) -> &'static str {
@@ -65,6 +94,10 @@ impl Method {
             Method::Adaptive => "adaptive",
             Method::AdaptiveMax => "adaptive-max",
             Method::Threshold => "threshold",
+            Method::Jitter => "jitter",
+            Method::Stratified => "stratified",
+            Method::Mc => "mc",
+            Method::Importance => "importance",
         }
     }
 
@@ -196,6 +229,9 @@ pub struct RenderParams {
     /// Edge of the blocks for empty-space skipping and the adaptive
     /// marchers, in cells (2…64).
     pub block_size: u32,
+    /// Samples (passes) per pixel of the stochastic methods, averaged
+    /// progressively; each pass draws new random positions.
+    pub spp: u32,
 }
 
 impl Default for RenderParams {
@@ -217,6 +253,7 @@ impl Default for RenderParams {
             adaptive: AdaptiveParams::default(),
             threshold: ThresholdParams::default(),
             block_size: blocks::DEFAULT_BLOCK as u32,
+            spp: 1,
         }
     }
 }
@@ -246,6 +283,12 @@ impl RenderParams {
             return Err(Error::invalid(format!(
                 "block size {}: must be 2…64 cells",
                 self.block_size
+            )));
+        }
+        if !(1..=1 << 20).contains(&self.spp) {
+            return Err(Error::invalid(format!(
+                "spp {}: samples per pixel must be 1…1048576",
+                self.spp
             )));
         }
         let t = &self.threshold;
@@ -390,7 +433,13 @@ impl<'v> Renderer<'v> {
         } else {
             &[]
         };
+        let block_sigma = if params.method == Method::Importance {
+            stochastic_block_sigma(&derived.blocks, tf)
+        } else {
+            Vec::new()
+        };
         let job = Job {
+            block_sigma: &block_sigma,
             volume,
             lut: Lut::new(tf, params.step),
             cam,
@@ -407,7 +456,26 @@ impl<'v> Renderer<'v> {
     }
 }
 
+/// The `importance` pdf per block: the largest extinction (per unit length)
+/// that `tf` gives any value in the block (0 in empty blocks).
+fn stochastic_block_sigma(blocks: &BlockGrid, tf: &TransferFunction) -> Vec<f32> {
+    blocks
+        .range
+        .iter()
+        .map(|&[lo, hi]| {
+            if hi < 0.0 {
+                return 0.0;
+            }
+            let a = tf
+                .max_opacity_in(lo.max(0.0), hi.min(1.0))
+                .clamp(0.0, 0.9999);
+            -(1.0 - a).ln()
+        })
+        .collect()
+}
+
 struct Job<'a> {
+    block_sigma: &'a [f32],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
@@ -469,7 +537,7 @@ impl Job<'_> {
             shading: p.shading.then(BlinnPhong::default),
             method: p.method,
             grouped: p.grouped,
-            jitter: p.jitter.then_some(p.seed),
+            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
             skip_empty: p.skip_empty,
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
@@ -483,6 +551,15 @@ impl Job<'_> {
             threshold: p.threshold,
             threshold_steps: p.threshold.steps.map(|s| s * self.unit),
             threshold_alphas: &threshold_alphas,
+            seed: p.seed,
+            pass: 0,
+            block_sigma: self.block_sigma,
+        };
+        // Deterministic methods give the same image every pass.
+        let passes = if p.method.is_stochastic() || p.jitter {
+            p.spp
+        } else {
+            1
         };
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);
@@ -499,7 +576,14 @@ impl Job<'_> {
                 for y in ty..(ty + TILE).min(h) {
                     for x in tx..(tx + TILE).min(w) {
                         let (o, d) = self.cam.ray(x, y);
-                        let c = ray::trace::<T, O>(&ctx, o, d, (x, y), &mut stats, &mut scratch);
+                        let mut c = glam::Vec4::ZERO;
+                        for pass in 0..passes {
+                            let mut ctx = ctx;
+                            ctx.pass = pass;
+                            c += ray::trace::<T, O>(&ctx, o, d, (x, y), &mut stats, &mut scratch);
+                        }
+                        // Progressive average of premultiplied colour (linear).
+                        let c = c / passes as f32;
                         let rgb = c.truncate() + bg * (1.0 - c.w);
                         px.push([rgb.x, rgb.y, rgb.z, c.w]);
                     }

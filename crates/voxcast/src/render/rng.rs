@@ -25,10 +25,9 @@ impl Rng {
         r
     }
 
-    /// The stream of pixel `(x, y)`, pass `pass`, of an image `width` wide.
-    pub fn for_pixel(seed: u64, x: u32, y: u32, width: u32, pass: u32) -> Rng {
-        let px = y as u64 * width as u64 + x as u64;
-        Rng::new(seed, px.wrapping_mul(0x1_0000_0001) ^ ((pass as u64) << 40))
+    /// The stream of pixel `(x, y)` (each below 2¹⁶), pass `pass`.
+    pub fn for_pixel(seed: u64, x: u32, y: u32, pass: u32) -> Rng {
+        Rng::new(seed, x as u64 | (y as u64) << 16 | (pass as u64) << 32)
     }
 
     #[inline(always)]
