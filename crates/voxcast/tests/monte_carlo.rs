@@ -91,3 +91,60 @@ fn spp_is_checked() {
     p.spp = 3;
     assert!(p.validate().is_ok());
 }
+
+/// White furnace: a medium that scatters everything (albedo 1) inside an
+/// environment of radiance 1 is invisible, whatever its phase function: every
+/// pixel's mean is 1 within 3 standard errors (a lost or doubled path
+/// weight shows at once).
+#[test]
+fn white_furnace_for_every_phase_function() {
+    use voxcast::render::light::Light;
+    use voxcast::render::medium::MajorantKind;
+    use voxcast::render::phase::PhaseFunction;
+    let vol = voxcast::builtin::open("sphere").unwrap();
+    let s = vol.stats();
+    let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
+    let tf = TransferFunction::preset("grayscale").unwrap_or_else(|| scene().1);
+    for (i, phase) in [
+        PhaseFunction::Isotropic,
+        PhaseFunction::Hg { g: 0.8 },
+        PhaseFunction::Hg { g: -0.5 },
+        PhaseFunction::Schlick { k: 0.6 },
+        PhaseFunction::Rayleigh,
+        PhaseFunction::Mie { g: 0.85 },
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut p = params(Method::Path, 2, i as u64);
+        p.width = 24;
+        p.height = 24;
+        p.lights = vec![Light::Environment {
+            radiance: [1.0, 1.0, 1.0],
+        }];
+        p.medium.albedo = [1.0; 3];
+        p.medium.scale = 1.0;
+        // No truncation bias: the estimator itself must conserve energy.
+        p.medium.max_depth = 100_000;
+        p.medium.phase = phase;
+        p.medium.majorant = if i % 2 == 0 {
+            MajorantKind::Grid
+        } else {
+            MajorantKind::Global
+        };
+        let (img, stats) = r.render(&tf, &cam(), &p, &no_progress).unwrap();
+        assert!(stats.samples > 1000, "the medium was crossed: {stats:?}");
+        let v: Vec<f64> = img
+            .pixels
+            .iter()
+            .flat_map(|q| q[..3].iter().map(|&c| c as f64))
+            .collect();
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let se = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+        assert!(
+            (mean - 1.0).abs() <= 3.0 * se + 1e-5,
+            "{phase:?}: mean {mean} ± {se}"
+        );
+    }
+}

@@ -4,8 +4,12 @@
 //! dispatch, no allocation and no locks.
 
 pub mod blocks;
+pub mod light;
+pub mod majorant;
 pub mod march;
+pub mod medium;
 pub mod optics;
+mod path;
 pub mod phase;
 mod ray;
 pub mod rng;
@@ -59,10 +63,16 @@ pub enum Method {
     /// S1 eq. 7: positions drawn from a pdf following the TF opacity of the
     /// blocks the ray crosses, weighted by 1/(n·p(x)).
     Importance,
+    /// Optical model 4: single scattering of the lights with shadows, in a
+    /// physically based medium (`[render.medium]`, `[[render.lights]]`).
+    SingleScatter,
+    /// Optical model 5: volumetric path tracing (delta tracking, ratio
+    /// tracking, next-event estimation, Russian roulette, majorant grid).
+    Path,
 }
 
 impl Method {
-    pub const ALL: [Method; 8] = [
+    pub const ALL: [Method; 10] = [
         Method::Uniform,
         Method::Adaptive,
         Method::AdaptiveMax,
@@ -71,14 +81,26 @@ impl Method {
         Method::Stratified,
         Method::Mc,
         Method::Importance,
+        Method::SingleScatter,
+        Method::Path,
     ];
+
+    /// The physically based integrators (`render/path.rs`).
+    pub fn is_physical(self) -> bool {
+        matches!(self, Method::SingleScatter | Method::Path)
+    }
 
     /// The methods whose sample positions are random (S1), which
     /// progressive `spp` passes average.
     pub fn is_stochastic(self) -> bool {
         matches!(
             self,
-            Method::Jitter | Method::Stratified | Method::Mc | Method::Importance
+            Method::Jitter
+                | Method::Stratified
+                | Method::Mc
+                | Method::Importance
+                | Method::SingleScatter
+                | Method::Path
         )
     }
 
@@ -98,6 +120,8 @@ impl Method {
             Method::Stratified => "stratified",
             Method::Mc => "mc",
             Method::Importance => "importance",
+            Method::SingleScatter => "single-scatter",
+            Method::Path => "path",
         }
     }
 
@@ -232,6 +256,11 @@ pub struct RenderParams {
     /// Samples (passes) per pixel of the stochastic methods, averaged
     /// progressively; each pass draws new random positions.
     pub spp: u32,
+    /// Lights of `single-scatter` and `path` (none: a default sun and sky).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<light::Light>,
+    /// The medium of `single-scatter` and `path`.
+    pub medium: medium::MediumParams,
 }
 
 impl Default for RenderParams {
@@ -254,6 +283,8 @@ impl Default for RenderParams {
             threshold: ThresholdParams::default(),
             block_size: blocks::DEFAULT_BLOCK as u32,
             spp: 1,
+            lights: Vec::new(),
+            medium: medium::MediumParams::default(),
         }
     }
 }
@@ -290,6 +321,10 @@ impl RenderParams {
                 "spp {}: samples per pixel must be 1…1048576",
                 self.spp
             )));
+        }
+        self.medium.validate().map_err(Error::invalid)?;
+        for l in &self.lights {
+            l.validate().map_err(Error::invalid)?;
         }
         let t = &self.threshold;
         if t.steps
@@ -433,6 +468,12 @@ impl<'v> Renderer<'v> {
         } else {
             &[]
         };
+        if params.method.is_physical() {
+            let (image, mut stats) =
+                path::render(volume, self.window, &derived.blocks, cam, params, progress);
+            stats.seconds = start.elapsed().as_secs_f64();
+            return Ok((image, stats));
+        }
         let block_sigma = if params.method == Method::Importance {
             stochastic_block_sigma(&derived.blocks, tf)
         } else {
