@@ -16,6 +16,7 @@ pub mod metrics;
 pub mod render;
 pub mod scene;
 pub mod transfer;
+pub mod ttq;
 pub mod volume;
 
 #[doc(hidden)]

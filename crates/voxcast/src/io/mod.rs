@@ -10,6 +10,7 @@ pub mod dicom;
 pub mod fds;
 pub mod image_stack;
 pub mod metaimage;
+pub mod mitsuba_vol;
 pub mod nifti;
 pub mod nrrd;
 pub mod raw;
@@ -67,6 +68,8 @@ pub enum Format {
     Raw,
     Vdb,
     Fds,
+    /// Mitsuba's binary grid (`.vol`, "VOL" version 3).
+    MitsubaVol,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -105,6 +108,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::Vdb)
     } else if name.ends_with(".smv") {
         Some(Format::Fds)
+    } else if name.ends_with(".vol") {
+        Some(Format::MitsubaVol)
     } else {
         None
     };
@@ -123,6 +128,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else if head.starts_with(&[0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0]) {
         // OpenVDB's magic number 0x56444220 as a little-endian i64.
         Ok(Format::Vdb)
+    } else if mitsuba_vol::is_vol(&head) {
+        Ok(Format::MitsubaVol)
     } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
         Ok(Format::MetaImage)
     } else if head.starts_with(b"\x89PNG")
@@ -138,7 +145,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv .vol, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }
@@ -155,6 +162,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
         Format::Vdb => vdb::read(path, opts)?,
         Format::Fds => fds::read(path, opts)?,
+        Format::MitsubaVol => mitsuba_vol::read(path)?,
     };
     if let Some(s) = opts.spacing {
         vol.set_spacing(Vec3::from(s))?;

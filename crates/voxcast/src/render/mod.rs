@@ -449,6 +449,9 @@ impl<'v> Renderer<'v> {
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<(Image, RenderStats)> {
         params.validate()?;
+        if let Some(l) = &camera.look_at {
+            l.validate().map_err(Error::invalid)?;
+        }
         let start = Instant::now();
         let volume = self.volume;
         let (lo, hi) = volume.world_bounds();
