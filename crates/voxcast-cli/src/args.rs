@@ -272,6 +272,63 @@ pub struct SceneArgs {
         help_heading = "Geometry"
     )]
     pub light: Option<String>,
+    /// Samples per pixel of the stochastic methods (jitter, stratified, mc,
+    /// importance, single-scatter, path): each pass draws new random
+    /// positions and the passes are averaged, so noise falls as 1/√N.
+    #[arg(long, value_name = "N", help_heading = "Ray casting")]
+    pub spp: Option<u32>,
+
+    /// Phase function of the medium (single-scatter, path): isotropic,
+    /// hg:G (Henyey–Greenstein, mean cosine G), schlick:K, rayleigh, or
+    /// mie:G (Cornette–Shanks). Default hg:0.8.
+    #[arg(
+        long,
+        value_name = "SPEC",
+        help_heading = "Medium (single-scatter, path)"
+    )]
+    pub phase: Option<String>,
+    /// Single-scattering albedo σs/σt: one value or R,G,B (default 0.95).
+    #[arg(
+        long,
+        value_name = "A|R,G,B",
+        help_heading = "Medium (single-scatter, path)"
+    )]
+    pub albedo: Option<String>,
+    /// Extinction per world unit at density 1 (the density is the value
+    /// mapped through --window to 0…1). Default 10.
+    #[arg(
+        long,
+        value_name = "SIGMA",
+        help_heading = "Medium (single-scatter, path)"
+    )]
+    pub extinction: Option<f32>,
+    /// Free-flight sampling bound: grid (per-block maxima walked by DDA,
+    /// the default) or global (one maximum).
+    #[arg(
+        long,
+        value_name = "grid|global",
+        help_heading = "Medium (single-scatter, path)"
+    )]
+    pub majorant: Option<String>,
+    /// Longest path, in scattering events (default 256).
+    #[arg(long, value_name = "N", help_heading = "Medium (single-scatter, path)")]
+    pub max_depth: Option<u32>,
+    /// Light the medium by a constant environment of this radiance instead
+    /// of the default sun and sky (lights of a scene file are kept).
+    #[arg(
+        long,
+        value_name = "L|R,G,B",
+        help_heading = "Medium (single-scatter, path)"
+    )]
+    pub env: Option<String>,
+}
+
+/// `v` or `r,g,b`.
+fn one_or_three(s: &str, flag: &str) -> Result<[f32; 3]> {
+    if let Ok(v) = s.trim().parse::<f32>() {
+        return Ok([v; 3]);
+    }
+    triple(s, flag)
 }
 
 #[derive(Args)]
@@ -296,7 +353,14 @@ pub struct RenderArgs {
     /// Sampling method along rays: uniform (equal steps), adaptive (S0: a step
     /// per block from the derivative at its midpoint and the distance),
     /// adaptive-max (the same from the block's largest derivative) or
-    /// threshold (Zeng 2018: the step follows the value's range); append
+    /// threshold (Zeng 2018: the step follows the value's range); the
+    /// Monte-Carlo marchers of S1 (use with --spp N): jitter (one random
+    /// offset per ray), stratified (one random position per step), mc
+    /// (uniformly random positions, S1 eq. 5–6), importance (positions drawn
+    /// where the transfer function is opaque, S1 eq. 7); the physically based
+    /// integrators single-scatter (optical model 4: lights with shadows) and
+    /// path (model 5: volumetric path tracing), which ignore the transfer
+    /// function and use the medium options below; append
     /// +grouped for S0's grouped interpolation, +noskip to turn empty-space
     /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive]
     /// and [render.threshold] in a scene file.
@@ -326,7 +390,7 @@ pub struct BenchArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Methods to compare, comma-separated: uniform, adaptive, adaptive-max,
-    /// threshold, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
+    /// threshold, jitter, stratified, mc, importance, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
     /// speed-ups) is added when missing.
     #[arg(long, value_name = "LIST", default_value = DEFAULT_METHODS)]
     pub methods: String,
@@ -348,6 +412,16 @@ pub struct BenchArgs {
     /// Render the reference again even when it is cached (and update the cache).
     #[arg(long)]
     pub refresh_reference: bool,
+    /// Time to quality instead of the table: for each method, the cheapest
+    /// setting (step, and spp for stochastic methods) whose PSNR against the
+    /// reference reaches DB, and its median time; speed-ups are against
+    /// uniform at the same PSNR. Include single-scatter or path to compare
+    /// spp against a --reference-spp render of that integrator.
+    #[arg(long, value_name = "DB")]
+    pub target_psnr: Option<f64>,
+    /// Samples per pixel of the reference of single-scatter and path.
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    pub reference_spp: u32,
     /// No messages on stderr (the table still goes to stdout).
     #[arg(short, long)]
     pub quiet: bool,
@@ -490,6 +564,38 @@ impl SceneArgs {
         }
         if let Some(s) = self.seed {
             r.seed = s;
+        }
+        if let Some(n) = self.spp {
+            r.spp = n;
+        }
+        if let Some(ph) = &self.phase {
+            r.medium.phase =
+                voxcast::render::phase::PhaseFunction::parse(ph).with_context(|| {
+                    format!("--phase {ph}: expected isotropic, hg:G, schlick:K, rayleigh or mie:G")
+                })?;
+        }
+        if let Some(a) = &self.albedo {
+            r.medium.albedo = one_or_three(a, "--albedo")?;
+        }
+        if let Some(e) = self.extinction {
+            r.medium.scale = e;
+        }
+        if let Some(m) = &self.majorant {
+            r.medium.majorant = match m.as_str() {
+                "grid" => voxcast::render::medium::MajorantKind::Grid,
+                "global" => voxcast::render::medium::MajorantKind::Global,
+                _ => bail!("--majorant {m}: expected grid or global"),
+            };
+        }
+        if let Some(n) = self.max_depth {
+            r.medium.max_depth = n;
+        }
+        if let Some(e) = &self.env {
+            let radiance = one_or_three(e, "--env")?;
+            r.lights
+                .retain(|l| !matches!(l, voxcast::render::light::Light::Environment { .. }));
+            r.lights
+                .push(voxcast::render::light::Light::Environment { radiance });
         }
         r.validate()?;
         self.apply_geometry(scene)?;

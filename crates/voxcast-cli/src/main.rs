@@ -128,6 +128,9 @@ fn bench(a: BenchArgs) -> Result<()> {
     if !quiet {
         eprintln!("{}", loaded(&scene, &prepared, t_load));
     }
+    if let Some(target) = a.target_psnr {
+        return time_to_quality(&a, &scene, &prepared, methods, target);
+    }
     let config = bench::BenchConfig {
         methods,
         repeat: a.repeat,
@@ -201,6 +204,46 @@ fn bench(a: BenchArgs) -> Result<()> {
             report.methods.len(),
             list.join("; ")
         );
+    }
+    Ok(())
+}
+
+/// `voxcast bench --target-psnr`: time to quality per method.
+fn time_to_quality(
+    a: &BenchArgs,
+    scene: &Scene,
+    prepared: &voxcast::scene::Prepared,
+    methods: Vec<voxcast::render::MethodSpec>,
+    target: f64,
+) -> Result<()> {
+    let mut methods = methods;
+    if !methods.iter().any(|m| m.to_string() == "uniform")
+        && !methods.iter().any(|m| m.method.is_physical())
+    {
+        methods.insert(0, voxcast::render::MethodSpec::parse("uniform")?);
+    }
+    let config = voxcast::ttq::TtqConfig {
+        methods,
+        target_psnr: target,
+        repeat: a.repeat,
+        reference_spp: a.reference_spp,
+    };
+    let bar = ProgressBar::new_spinner();
+    if !std::io::stderr().is_terminal() || a.quiet {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    let report = voxcast::ttq::run(scene, prepared, &config, &|m: &str| {
+        bar.set_message(m.to_string());
+        bar.tick();
+    })?;
+    bar.finish_and_clear();
+    print!("{}", voxcast::ttq::markdown(&report));
+    if let Some(f) = &a.json {
+        let json = serde_json::to_string_pretty(&report)?;
+        voxcast::image::atomic_write(f, |w| {
+            use std::io::Write;
+            writeln!(w, "{json}")
+        })?;
     }
     Ok(())
 }

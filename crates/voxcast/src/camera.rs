@@ -32,6 +32,42 @@ pub struct CameraParams {
     pub zoom: f32,
     /// Vertical field of view in degrees (perspective).
     pub fov: f32,
+    /// Place the camera explicitly, as pbrt's and Mitsuba's `LookAt`
+    /// (world coordinates); orbit and zoom are then ignored.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub look_at: Option<LookAt>,
+}
+
+/// A camera by eye position, target point and up vector (world units),
+/// with the vertical field of view of [`CameraParams::fov`]:
+/// `look_at = { origin = [0, -4, 1], target = [0, 0, 0], up = [0, 0, 1] }`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LookAt {
+    pub origin: [f32; 3],
+    pub target: [f32; 3],
+    #[serde(default = "LookAt::z_up")]
+    pub up: [f32; 3],
+}
+
+impl LookAt {
+    fn z_up() -> [f32; 3] {
+        [0.0, 0.0, 1.0]
+    }
+
+    /// Checks that the eye is not the target and `up` is not along the view.
+    pub fn validate(&self) -> Result<(), String> {
+        let f = Vec3::from(self.target) - Vec3::from(self.origin);
+        let up = Vec3::from(self.up);
+        if !(f.is_finite() && up.is_finite())
+            || f.length() < 1e-9
+            || f.cross(up).length() < 1e-9 * f.length() * up.length().max(1e-30)
+        {
+            return Err(format!(
+                "camera.look_at {self:?}: origin and target must differ and up must not be parallel to the view"
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for CameraParams {
@@ -42,6 +78,7 @@ impl Default for CameraParams {
             elevation: 0.0,
             zoom: 1.0,
             fov: 30.0,
+            look_at: None,
         }
     }
 }
@@ -66,6 +103,9 @@ impl Camera {
     /// Frames the box `[lo, hi]` so that its bounding sphere fits the image,
     /// then applies orbit and zoom.
     pub fn fit(params: &CameraParams, lo: Vec3, hi: Vec3, width: u32, height: u32) -> Camera {
+        if let Some(l) = params.look_at.filter(|l| l.validate().is_ok()) {
+            return Camera::look_at(&l, params.fov, params.projection, lo, hi, width, height);
+        }
         let center = (lo + hi) * 0.5;
         let radius = ((hi - lo).length() * 0.5).max(1e-6);
         let az = params.azimuth.to_radians();
@@ -111,6 +151,40 @@ impl Camera {
                     height,
                 }
             }
+        }
+    }
+
+    /// A camera at `l.origin` looking at `l.target` with vertical field of
+    /// view `fov` degrees (orthographic: the image height spans the box's
+    /// bounding sphere at the target).
+    pub fn look_at(
+        l: &LookAt,
+        fov: f32,
+        projection: Projection,
+        lo: Vec3,
+        hi: Vec3,
+        width: u32,
+        height: u32,
+    ) -> Camera {
+        let eye = Vec3::from(l.origin);
+        let forward = (Vec3::from(l.target) - eye).normalize();
+        let right = forward.cross(Vec3::from(l.up)).normalize();
+        let up = right.cross(forward);
+        let aspect = width as f32 / height.max(1) as f32;
+        let half_height = match projection {
+            Projection::Perspective => (fov.clamp(1.0, 170.0).to_radians() * 0.5).tan(),
+            Projection::Orthographic => ((hi - lo).length() * 0.5).max(1e-6),
+        };
+        Camera {
+            eye,
+            forward,
+            right,
+            up,
+            projection,
+            half_height,
+            aspect,
+            width,
+            height,
         }
     }
 
@@ -167,6 +241,33 @@ mod tests {
         assert!(px > 60.0);
         let (_, py) = project(&cam, Vec3::new(5.0, 5.0, 10.0));
         assert!(py < 40.0);
+    }
+
+    #[test]
+    fn look_at_points_the_centre_ray_at_the_target() {
+        let p = CameraParams {
+            fov: 40.0,
+            look_at: Some(LookAt {
+                origin: [1.0, -5.0, 2.0],
+                target: [0.0, 0.0, 0.5],
+                up: [0.0, 0.0, 1.0],
+            }),
+            ..Default::default()
+        };
+        let cam = Camera::fit(&p, Vec3::ZERO, Vec3::ONE, 64, 48);
+        let (o, d) = cam.ray_at(32.0, 24.0);
+        let to = (Vec3::new(0.0, 0.0, 0.5) - o).normalize();
+        assert!((d - to).length() < 1e-5);
+        // The top edge is fov/2 above the centre.
+        let (_, top) = cam.ray_at(32.0, 0.0);
+        assert!((top.dot(d).acos().to_degrees() - 20.0).abs() < 1e-3);
+        assert!(top.z > d.z);
+        let bad = LookAt {
+            origin: [0.0; 3],
+            target: [0.0, 0.0, 1.0],
+            up: [0.0, 0.0, 1.0],
+        };
+        assert!(bad.validate().is_err());
     }
 
     #[test]

@@ -19,6 +19,7 @@ pub mod render;
 pub mod scene;
 pub mod sim;
 pub mod transfer;
+pub mod ttq;
 pub mod volume;
 
 #[doc(hidden)]

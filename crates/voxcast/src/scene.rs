@@ -146,6 +146,10 @@ impl Scene {
             .render
             .validate()
             .map_err(|e| Error::format(path, "render", e.to_string()))?;
+        if let Some(l) = &scene.camera.look_at {
+            l.validate()
+                .map_err(|e| Error::format(path, "camera.look_at", e))?;
+        }
         Ok(scene)
     }
 

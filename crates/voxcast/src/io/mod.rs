@@ -10,6 +10,7 @@ pub mod dicom;
 pub mod fds;
 pub mod image_stack;
 pub mod metaimage;
+pub mod mitsuba_vol;
 pub mod nifti;
 pub mod nrrd;
 pub mod nrrd_write;
@@ -70,6 +71,8 @@ pub enum Format {
     Fds,
     /// A frame folder written by a simulator (`series.toml` + frames).
     Series,
+    /// Mitsuba's binary grid (`.vol`, "VOL" version 3).
+    MitsubaVol,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -111,6 +114,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::Vdb)
     } else if name.ends_with(".smv") {
         Some(Format::Fds)
+    } else if name.ends_with(".vol") {
+        Some(Format::MitsubaVol)
     } else {
         None
     };
@@ -129,6 +134,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else if head.starts_with(&[0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0]) {
         // OpenVDB's magic number 0x56444220 as a little-endian i64.
         Ok(Format::Vdb)
+    } else if mitsuba_vol::is_vol(&head) {
+        Ok(Format::MitsubaVol)
     } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
         Ok(Format::MetaImage)
     } else if head.starts_with(b"\x89PNG")
@@ -144,7 +151,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv .vol, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }
@@ -167,6 +174,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
             let i = opts.time.map(|t| s.nearest(t)).unwrap_or(s.len() - 1);
             s.load(i, opts)?
         }
+        Format::MitsubaVol => mitsuba_vol::read(path)?,
     };
     if let Some(s) = opts.spacing {
         vol.set_spacing(Vec3::from(s))?;

@@ -4,12 +4,19 @@
 //! dispatch, no allocation and no locks.
 
 pub mod blocks;
+pub mod light;
+pub mod majorant;
 pub mod march;
+pub mod medium;
 pub mod optics;
+mod path;
+pub mod phase;
 mod ray;
+pub mod rng;
 pub mod shading;
 pub mod stats;
 mod surface;
+mod stochastic;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
@@ -47,15 +54,61 @@ pub enum Method {
     /// Zeng et al. 2018: the step depends on the value range the current
     /// sample falls into.
     Threshold,
+    /// Uniform steps from one random offset per ray (a golden-ratio sequence
+    /// over the `spp` passes): no wood grain.
+    Jitter,
+    /// S1: one random position in each step interval.
+    Stratified,
+    /// S1 eqs. 5–6: ⌈L/step⌉ uniformly random positions on the whole ray.
+    Mc,
+    /// S1 eq. 7: positions drawn from a pdf following the TF opacity of the
+    /// blocks the ray crosses, weighted by 1/(n·p(x)).
+    Importance,
+    /// Optical model 4: single scattering of the lights with shadows, in a
+    /// physically based medium (`[render.medium]`, `[[render.lights]]`).
+    SingleScatter,
+    /// Optical model 5: volumetric path tracing (delta tracking, ratio
+    /// tracking, next-event estimation, Russian roulette, majorant grid).
+    Path,
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 10] = [
         Method::Uniform,
         Method::Adaptive,
         Method::AdaptiveMax,
         Method::Threshold,
+        Method::Jitter,
+        Method::Stratified,
+        Method::Mc,
+        Method::Importance,
+        Method::SingleScatter,
+        Method::Path,
     ];
+
+    /// The physically based integrators (`render/path.rs`).
+    pub fn is_physical(self) -> bool {
+        matches!(self, Method::SingleScatter | Method::Path)
+    }
+
+    /// The methods whose sample positions are random (S1), which
+    /// progressive `spp` passes average.
+    pub fn is_stochastic(self) -> bool {
+        matches!(
+            self,
+            Method::Jitter
+                | Method::Stratified
+                | Method::Mc
+                | Method::Importance
+                | Method::SingleScatter
+                | Method::Path
+        )
+    }
+
+    /// The marchers of `render/stochastic.rs`.
+    pub fn is_monte_carlo(self) -> bool {
+        matches!(self, Method::Stratified | Method::Mc | Method::Importance)
+    }
 
     /// The name used on the command line and in scene files.
     pub fn name(self) -> &'static str {
@@ -64,6 +117,12 @@ impl Method {
             Method::Adaptive => "adaptive",
             Method::AdaptiveMax => "adaptive-max",
             Method::Threshold => "threshold",
+            Method::Jitter => "jitter",
+            Method::Stratified => "stratified",
+            Method::Mc => "mc",
+            Method::Importance => "importance",
+            Method::SingleScatter => "single-scatter",
+            Method::Path => "path",
         }
     }
 
@@ -195,6 +254,14 @@ pub struct RenderParams {
     /// Edge of the blocks for empty-space skipping and the adaptive
     /// marchers, in cells (2…64).
     pub block_size: u32,
+    /// Samples (passes) per pixel of the stochastic methods, averaged
+    /// progressively; each pass draws new random positions.
+    pub spp: u32,
+    /// Lights of `single-scatter` and `path` (none: a default sun and sky).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<light::Light>,
+    /// The medium of `single-scatter` and `path`.
+    pub medium: medium::MediumParams,
 }
 
 impl Default for RenderParams {
@@ -216,6 +283,9 @@ impl Default for RenderParams {
             adaptive: AdaptiveParams::default(),
             threshold: ThresholdParams::default(),
             block_size: blocks::DEFAULT_BLOCK as u32,
+            spp: 1,
+            lights: Vec::new(),
+            medium: medium::MediumParams::default(),
         }
     }
 }
@@ -246,6 +316,16 @@ impl RenderParams {
                 "block size {}: must be 2…64 cells",
                 self.block_size
             )));
+        }
+        if !(1..=1 << 20).contains(&self.spp) {
+            return Err(Error::invalid(format!(
+                "spp {}: samples per pixel must be 1…1048576",
+                self.spp
+            )));
+        }
+        self.medium.validate().map_err(Error::invalid)?;
+        for l in &self.lights {
+            l.validate().map_err(Error::invalid)?;
         }
         let t = &self.threshold;
         if t.steps
@@ -380,6 +460,9 @@ impl<'v> Renderer<'v> {
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<(Image, RenderStats)> {
         params.validate()?;
+        if let Some(l) = &camera.look_at {
+            l.validate().map_err(Error::invalid)?;
+        }
         let start = Instant::now();
         let volume = self.volume;
         let (mut lo, mut hi) = volume.world_bounds();
@@ -402,7 +485,27 @@ impl<'v> Renderer<'v> {
         } else {
             &[]
         };
+        if params.method.is_physical() {
+            // The path tracer's medium has no surfaces yet: refuse rather
+            // than draw the smoke through walls the user asked for.
+            if self.geometry.is_some() {
+                return Err(Error::invalid(format!(
+                    "method {}: opaque geometry is not supported by the physically based integrators yet; render without it (--geometry none) or use a ray-casting method",
+                    params.method.name()
+                )));
+            }
+            let (image, mut stats) =
+                path::render(volume, self.window, &derived.blocks, cam, params, progress);
+            stats.seconds = start.elapsed().as_secs_f64();
+            return Ok((image, stats));
+        }
+        let block_sigma = if params.method == Method::Importance {
+            stochastic_block_sigma(&derived.blocks, tf)
+        } else {
+            Vec::new()
+        };
         let job = Job {
+            block_sigma: &block_sigma,
             volume,
             lut: Lut::new(tf, params.step),
             cam,
@@ -424,7 +527,26 @@ impl<'v> Renderer<'v> {
     }
 }
 
+/// The `importance` pdf per block: the largest extinction (per unit length)
+/// that `tf` gives any value in the block (0 in empty blocks).
+fn stochastic_block_sigma(blocks: &BlockGrid, tf: &TransferFunction) -> Vec<f32> {
+    blocks
+        .range
+        .iter()
+        .map(|&[lo, hi]| {
+            if hi < 0.0 {
+                return 0.0;
+            }
+            let a = tf
+                .max_opacity_in(lo.max(0.0), hi.min(1.0))
+                .clamp(0.0, 0.9999);
+            -(1.0 - a).ln()
+        })
+        .collect()
+}
+
 struct Job<'a> {
+    block_sigma: &'a [f32],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
@@ -487,7 +609,7 @@ impl Job<'_> {
             shading: p.shading.then(BlinnPhong::default),
             method: p.method,
             grouped: p.grouped,
-            jitter: p.jitter.then_some(p.seed),
+            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
             skip_empty: p.skip_empty,
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
@@ -502,6 +624,15 @@ impl Job<'_> {
             threshold_steps: p.threshold.steps.map(|s| s * self.unit),
             threshold_alphas: &threshold_alphas,
             surface: self.surface,
+            seed: p.seed,
+            pass: 0,
+            block_sigma: self.block_sigma,
+        };
+        // Deterministic methods give the same image every pass.
+        let passes = if p.method.is_stochastic() || p.jitter {
+            p.spp
+        } else {
+            1
         };
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);
@@ -518,7 +649,14 @@ impl Job<'_> {
                 for y in ty..(ty + TILE).min(h) {
                     for x in tx..(tx + TILE).min(w) {
                         let (o, d) = self.cam.ray(x, y);
-                        let c = ray::trace::<T, O>(&ctx, o, d, (x, y), &mut stats, &mut scratch);
+                        let mut c = glam::Vec4::ZERO;
+                        for pass in 0..passes {
+                            let mut ctx = ctx;
+                            ctx.pass = pass;
+                            c += ray::trace::<T, O>(&ctx, o, d, (x, y), &mut stats, &mut scratch);
+                        }
+                        // Progressive average of premultiplied colour (linear).
+                        let c = c / passes as f32;
                         let rgb = c.truncate() + bg * (1.0 - c.w);
                         px.push([rgb.x, rgb.y, rgb.z, c.w]);
                     }

@@ -12,7 +12,8 @@ use crate::transfer::{Lut, LUT_SIZE};
 use crate::volume::{Grid, Voxel};
 use glam::{Vec3, Vec4};
 
-/// Everything a ray needs that is the same for all rays of a render.
+/// Everything a ray needs that is the same for all rays of a render (and
+/// pass: progressive methods copy it with the pass number changed).
 pub(super) struct RayCtx<'a, T> {
     pub grid: &'a Grid<'a, T>,
     pub lut: &'a Lut,
@@ -53,7 +54,21 @@ pub(super) struct RayCtx<'a, T> {
     pub threshold_alphas: &'a [Box<[f32; LUT_SIZE]>],
     /// Opaque geometry the ray may stop at (S0 Fig. 9–13).
     pub surface: Option<super::surface::SurfaceCtx<'a>>,
+    /// Seed and pass of the stochastic marchers (Monte-Carlo passes).
+    pub seed: u64,
+    pub pass: u32,
+    /// `importance`: largest extinction per block under the TF (its pdf).
+    pub block_sigma: &'a [f32],
 }
+
+// Manual impls: a derive would demand `T: Copy`, but only references to T
+// are held.
+impl<T> Clone for RayCtx<'_, T> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<T> Copy for RayCtx<'_, T> {}
 
 /// A sample evaluated but not yet composited (its stretch of ray is known
 /// only when the next sample's position is).
@@ -65,7 +80,7 @@ struct Pending {
 }
 
 /// Accumulated colour and opacity, in either order.
-struct Acc<'s> {
+pub(super) struct Acc<'s> {
     c: Vec3,
     a: f32,
     ert: f32,
@@ -75,7 +90,7 @@ struct Acc<'s> {
 impl Acc<'_> {
     /// Adds a sample; true when the ray may stop (early ray termination).
     #[inline(always)]
-    fn add<O: Optics>(&mut self, rgb: Vec3, alpha: f32) -> bool {
+    pub(super) fn add<O: Optics>(&mut self, rgb: Vec3, alpha: f32) -> bool {
         let (em, ab) = O::contribution(rgb, alpha);
         match &mut self.back {
             Some(buf) => {
@@ -113,7 +128,7 @@ impl Acc<'_> {
 /// Reconstructs, classifies and shades the sample at voxel position `p`;
 /// `None` when the transfer function makes it transparent.
 #[inline(always)]
-fn evaluate<T: Voxel>(
+pub(super) fn evaluate<T: Voxel>(
     ctx: &RayCtx<'_, T>,
     p: Vec3,
     view: Vec3,
@@ -127,9 +142,9 @@ fn evaluate<T: Voxel>(
 
 /// Per-ray counters, kept in registers and added to the tile's stats once.
 #[derive(Default)]
-struct Counters {
-    samples: u64,
-    interpolations: u64,
+pub(super) struct Counters {
+    pub samples: u64,
+    pub interpolations: u64,
     shaded: u64,
 }
 
@@ -170,7 +185,10 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     }
     stats.rays_hit += 1;
     let t0 = match ctx.jitter {
-        Some(seed) => t_in + super::march::pixel_random(seed, pixel.0, pixel.1) * ctx.step,
+        // Pass 0 of the sequence is the plain per-pixel random offset.
+        Some(seed) => {
+            t_in + super::rng::pixel_sequence(seed, pixel.0, pixel.1, ctx.pass) * ctx.step
+        }
         None => t_in,
     };
     scratch.clear();
@@ -184,6 +202,8 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     let walker = BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts);
     let terminated = if ctx.method == Method::Threshold {
         march_threshold::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
+    } else if ctx.method.is_monte_carlo() {
+        super::stochastic::march::<T, O>(ctx, o, d, -dir, t_in, t_out, pixel, &mut acc, &mut n)
     } else {
         march_blocks::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
     };
@@ -220,8 +240,7 @@ fn march_blocks<T: Voxel, O: Optics>(
     for (ta, tb, b) in walker {
         let empty = ctx.empty[b];
         let j = match ctx.method {
-            Method::Uniform | Method::Threshold => 0,
-            _ if empty => ctx.level_hi,
+            Method::Adaptive | Method::AdaptiveMax if empty => ctx.level_hi,
             Method::Adaptive => {
                 // S0 eqs. 1–6 at the block's midpoint S.
                 let tm = 0.5 * (ta + tb);
@@ -231,6 +250,8 @@ fn march_blocks<T: Voxel, O: Optics>(
                 level(ctx, k, t_out, tm)
             }
             Method::AdaptiveMax => level(ctx, ctx.max_gradient[b], t_out, 0.5 * (ta + tb)),
+            // Uniform steps: uniform, threshold's base grid, jitter.
+            _ => 0,
         };
         let li = (j - ctx.level_lo) as usize;
         let s = ctx.level_steps[li];
