@@ -40,6 +40,9 @@ pub enum Command {
     Compare(CompareArgs),
     /// List transfer-function presets and built-in volumes.
     Presets,
+    /// Simulate a cloud (S3 particle system) into a frame folder.
+    #[command(after_long_help = crate::cloud::CLOUD_HELP)]
+    Cloud(Box<crate::cloud::CloudArgs>),
 }
 
 const RENDER_HELP: &str = "\

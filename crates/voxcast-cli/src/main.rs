@@ -3,6 +3,7 @@
 
 mod args;
 mod chart;
+mod cloud;
 
 use anyhow::{bail, Context, Result};
 use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};
@@ -22,6 +23,7 @@ fn main() {
         Command::Bench(a) => bench(*a),
         Command::Info(a) => info(a),
         Command::Compare(a) => compare(a),
+        Command::Cloud(a) => cloud::run(*a),
         Command::Presets => {
             presets();
             Ok(())

@@ -15,6 +15,7 @@ pub mod io;
 pub mod metrics;
 pub mod render;
 pub mod scene;
+pub mod sim;
 pub mod transfer;
 pub mod volume;
 

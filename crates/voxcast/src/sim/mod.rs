@@ -1,0 +1,3 @@
+//! Simulators that produce volumes: cloud particle systems.
+
+pub mod cloud;
