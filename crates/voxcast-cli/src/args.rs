@@ -263,10 +263,12 @@ pub struct RenderArgs {
     /// Sampling method along rays: uniform (equal steps), adaptive (S0: a step
     /// per block from the derivative at its midpoint and the distance),
     /// adaptive-max (the same from the block's largest derivative) or
-    /// threshold (Zeng 2018: the step follows the value's range); append
+    /// threshold (Zeng 2018: the step follows the value's range) or lod
+    /// (S3: octree, empty subtrees skipped, every k-th uniform sample with
+    /// k odd where a leaf contributes much, even where little); append
     /// +grouped for S0's grouped interpolation, +noskip to turn empty-space
-    /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive]
-    /// and [render.threshold] in a scene file.
+    /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive],
+    /// [render.threshold] and [render.lod] in a scene file.
     #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
     pub method: Option<String>,
 }

@@ -4,7 +4,9 @@
 //! dispatch, no allocation and no locks.
 
 pub mod blocks;
+pub mod lod;
 pub mod march;
+pub mod octree;
 pub mod optics;
 mod ray;
 pub mod shading;
@@ -46,14 +48,19 @@ pub enum Method {
     /// Zeng et al. 2018: the step depends on the value range the current
     /// sample falls into.
     Threshold,
+    /// S3: octree traversal skipping empty subtrees, with equidistant
+    /// decimation of the uniform samples per leaf (odd spacings where the
+    /// contribution is high, even where it is low).
+    Lod,
 }
 
 impl Method {
-    pub const ALL: [Method; 4] = [
+    pub const ALL: [Method; 5] = [
         Method::Uniform,
         Method::Adaptive,
         Method::AdaptiveMax,
         Method::Threshold,
+        Method::Lod,
     ];
 
     /// The name used on the command line and in scene files.
@@ -63,6 +70,7 @@ impl Method {
             Method::Adaptive => "adaptive",
             Method::AdaptiveMax => "adaptive-max",
             Method::Threshold => "threshold",
+            Method::Lod => "lod",
         }
     }
 
@@ -194,6 +202,8 @@ pub struct RenderParams {
     /// Edge of the blocks for empty-space skipping and the adaptive
     /// marchers, in cells (2…64).
     pub block_size: u32,
+    /// Parameters of `lod` (S3).
+    pub lod: lod::LodParams,
 }
 
 impl Default for RenderParams {
@@ -215,6 +225,7 @@ impl Default for RenderParams {
             adaptive: AdaptiveParams::default(),
             threshold: ThresholdParams::default(),
             block_size: blocks::DEFAULT_BLOCK as u32,
+            lod: lod::LodParams::default(),
         }
     }
 }
@@ -266,6 +277,7 @@ impl RenderParams {
                 "adaptive: k_ref must be positive and min/max steps 0.001…64 voxels",
             ));
         }
+        self.lod.validate()?;
         if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
             return Err(Error::invalid("background: each component must be in 0…1"));
         }
@@ -304,6 +316,8 @@ pub struct Renderer<'v> {
 struct Derived {
     blocks: BlockGrid,
     max_gradient: std::sync::OnceLock<Vec<f32>>,
+    /// The S3 octree over the blocks (for `lod`, built on first use).
+    octree: std::sync::OnceLock<octree::Octree>,
 }
 
 impl<'v> Renderer<'v> {
@@ -355,6 +369,7 @@ impl<'v> Renderer<'v> {
         let d = Arc::new(Derived {
             blocks,
             max_gradient: std::sync::OnceLock::new(),
+            octree: std::sync::OnceLock::new(),
         });
         list.push((size, d.clone()));
         d
@@ -388,6 +403,17 @@ impl<'v> Renderer<'v> {
         } else {
             &[]
         };
+        let tree = (params.method == Method::Lod).then(|| {
+            derived.octree.get_or_init(|| {
+                volume.visit(
+                    self.window[0],
+                    self.window[1],
+                    octree::BuildOctree {
+                        leaf: derived.blocks.size,
+                    },
+                )
+            })
+        });
         let job = Job {
             volume,
             lut: Lut::new(tf, params.step),
@@ -398,6 +424,7 @@ impl<'v> Renderer<'v> {
             blocks: &derived.blocks,
             empty: derived.blocks.empty_flags(tf),
             max_gradient,
+            tree,
         };
         let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
         stats.seconds = start.elapsed().as_secs_f64();
@@ -410,6 +437,7 @@ struct Job<'a> {
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
     max_gradient: &'a [f32],
+    tree: Option<&'a octree::Octree>,
     lut: Lut,
     cam: Camera,
     params: &'a RenderParams,
@@ -453,6 +481,9 @@ impl Job<'_> {
             .iter()
             .map(|&r| self.lut.alphas(r))
             .collect();
+        let lod_ray = self
+            .tree
+            .map(|t| lod::LodRay::new(t, &self.empty, &self.lut, &p.lod, p.step, self.unit));
         let ctx = RayCtx {
             grid,
             lut: &self.lut,
@@ -481,6 +512,7 @@ impl Job<'_> {
             threshold: p.threshold,
             threshold_steps: p.threshold.steps.map(|s| s * self.unit),
             threshold_alphas: &threshold_alphas,
+            lod: lod_ray.as_ref(),
         };
         let tiles_x = w.div_ceil(TILE);
         let tiles_y = h.div_ceil(TILE);

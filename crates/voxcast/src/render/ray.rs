@@ -51,21 +51,23 @@ pub(super) struct RayCtx<'a, T> {
     pub threshold: ThresholdParams,
     pub threshold_steps: [f32; 3],
     pub threshold_alphas: &'a [Box<[f32; LUT_SIZE]>],
+    /// S3 octree + LOD: the octree and the spacing tables (`lod` only).
+    pub lod: Option<&'a super::lod::LodRay<'a>>,
 }
 
 /// A sample evaluated but not yet composited (its stretch of ray is known
 /// only when the next sample's position is).
 #[derive(Clone, Copy)]
-struct Pending {
-    t: f32,
-    entry: usize,
-    rgb: Vec3,
+pub(super) struct Pending {
+    pub t: f32,
+    pub entry: usize,
+    pub rgb: Vec3,
 }
 
 /// Accumulated colour and opacity, in either order.
-struct Acc<'s> {
+pub(super) struct Acc<'s> {
     c: Vec3,
-    a: f32,
+    pub a: f32,
     ert: f32,
     back: Option<&'s mut Vec<(Vec3, f32)>>,
 }
@@ -73,7 +75,7 @@ struct Acc<'s> {
 impl Acc<'_> {
     /// Adds a sample; true when the ray may stop (early ray termination).
     #[inline(always)]
-    fn add<O: Optics>(&mut self, rgb: Vec3, alpha: f32) -> bool {
+    pub fn add<O: Optics>(&mut self, rgb: Vec3, alpha: f32) -> bool {
         let (em, ab) = O::contribution(rgb, alpha);
         match &mut self.back {
             Some(buf) => {
@@ -100,7 +102,7 @@ impl Acc<'_> {
 /// Reconstructs, classifies and shades the sample at voxel position `p`;
 /// `None` when the transfer function makes it transparent.
 #[inline(always)]
-fn evaluate<T: Voxel>(
+pub(super) fn evaluate<T: Voxel>(
     ctx: &RayCtx<'_, T>,
     p: Vec3,
     view: Vec3,
@@ -114,10 +116,10 @@ fn evaluate<T: Voxel>(
 
 /// Per-ray counters, kept in registers and added to the tile's stats once.
 #[derive(Default)]
-struct Counters {
-    samples: u64,
-    interpolations: u64,
-    shaded: u64,
+pub(super) struct Counters {
+    pub samples: u64,
+    pub interpolations: u64,
+    pub shaded: u64,
 }
 
 /// Casts one ray; returns premultiplied linear colour and opacity (before
@@ -153,7 +155,9 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     };
     let mut n = Counters::default();
     let walker = BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts);
-    let terminated = if ctx.method == Method::Threshold {
+    let terminated = if let (Method::Lod, Some(lod)) = (ctx.method, ctx.lod) {
+        super::lod::march_lod::<T, O>(ctx, lod, o, d, -dir, t0, t_in, t_out, &mut acc, &mut n)
+    } else if ctx.method == Method::Threshold {
         march_threshold::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
     } else {
         march_blocks::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
@@ -190,7 +194,7 @@ fn march_blocks<T: Voxel, O: Optics>(
     for (ta, tb, b) in walker {
         let empty = ctx.empty[b];
         let j = match ctx.method {
-            Method::Uniform | Method::Threshold => 0,
+            Method::Uniform | Method::Threshold | Method::Lod => 0,
             _ if empty => ctx.level_hi,
             Method::Adaptive => {
                 // S0 eqs. 1–6 at the block's midpoint S.
