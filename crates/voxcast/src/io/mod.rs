@@ -19,6 +19,7 @@ mod test_support;
 pub mod util;
 pub mod vdb;
 pub mod vtk;
+pub mod wrf;
 
 use crate::error::{Error, Result};
 use crate::volume::{ScalarType, Volume};
@@ -70,6 +71,8 @@ pub enum Format {
     Fds,
     /// A frame folder written by a simulator (`series.toml` + frames).
     Series,
+    /// WRF output (NetCDF-4 / NetCDF classic; needs the `wrf` feature).
+    Wrf,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -111,6 +114,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::Vdb)
     } else if name.ends_with(".smv") {
         Some(Format::Fds)
+    } else if wrf::is_wrf_name(&name) {
+        Some(Format::Wrf)
     } else {
         None
     };
@@ -129,6 +134,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else if head.starts_with(&[0x20, 0x42, 0x44, 0x56, 0, 0, 0, 0]) {
         // OpenVDB's magic number 0x56444220 as a little-endian i64.
         Ok(Format::Vdb)
+    } else if wrf::is_netcdf_magic(&head) {
+        Ok(Format::Wrf)
     } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
         Ok(Format::MetaImage)
     } else if head.starts_with(b"\x89PNG")
@@ -144,7 +151,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv .nc/wrfout_*, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }
@@ -161,6 +168,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
         Format::Vdb => vdb::read(path, opts)?,
         Format::Fds => fds::read(path, opts)?,
+        Format::Wrf => wrf::read(path, opts)?,
         Format::Series => {
             // One frame of the series: the nearest to `--time`, else the last.
             let s = crate::volume::Series::open_folder(path)?;
