@@ -25,7 +25,9 @@ Examples:
   voxcast cloud --type cumulus -o cumulus/
   voxcast render cumulus/ --tf cloud -o cumulus.png --elevation 25
   voxcast cloud --type stratus --frames 30 --grid 200,200,40 -o stratus/
-  voxcast render stratus/ --time 12 --tf cloud -o stratus12.png";
+  voxcast render stratus/ --time 12 --tf cloud -o stratus12.png
+  voxcast cloud --from-wrf ../shared/data/wrf_katrina/mercator_sample.nc --time 2 -o katrina/
+    (needs a build with --features wrf)";
 
 #[derive(Args)]
 pub struct CloudArgs {
@@ -46,6 +48,19 @@ pub struct CloudArgs {
     /// a series, whose frames are replaced).
     #[arg(short, long, value_name = "DIR")]
     pub output: PathBuf,
+    /// The paper's path: seed the particles where a weather model has cloud
+    /// water — a WRF wrfout file (build with --features wrf) or any volume
+    /// voxcast reads; each cell above 1 % of the maximum becomes a puff
+    /// whose particles' density follows the value. --type is then ignored.
+    #[arg(long, value_name = "FILE")]
+    pub from_wrf: Option<PathBuf>,
+    /// With --from-wrf: the variable, or a sum such as QCLOUD+QICE
+    /// (default QCLOUD).
+    #[arg(long, value_name = "NAME")]
+    pub var: Option<String>,
+    /// With --from-wrf: the time index to read (default 0).
+    #[arg(long, value_name = "INDEX")]
+    pub time: Option<u32>,
     /// Write frames uncompressed (faster, larger).
     #[arg(long)]
     pub raw: bool,
@@ -73,9 +88,27 @@ pub fn run(a: CloudArgs) -> Result<()> {
         seed: a.seed,
         frames: a.frames,
     };
-    let mut sim = CloudSim::new(options)?;
-    let title = format!("{} cloud, seed {}", sim.options.kind.name(), a.seed);
-    let mut writer = SeriesWriter::create(&a.output, Some(title), Some("frame".into()))?;
+    let (mut sim, what) = match &a.from_wrf {
+        Some(path) => {
+            let opts = voxcast::io::OpenOptions {
+                variable: Some(a.var.clone().unwrap_or_else(|| "QCLOUD".into())),
+                time: a.time.map(f64::from),
+                ..Default::default()
+            };
+            let field = voxcast::io::open(path, &opts)
+                .with_context(|| format!("reading the cloud field from {}", path.display()))?;
+            let name = field.name.clone().unwrap_or_else(|| "field".into());
+            let sim = CloudSim::from_field(options, &field)?;
+            (sim, format!("cloud from {name} of {}", path.display()))
+        }
+        None => {
+            let sim = CloudSim::new(options)?;
+            let what = format!("{} cloud", sim.options.kind.name());
+            (sim, what)
+        }
+    };
+    let title = format!("{what}, seed {}", a.seed);
+    let mut writer = SeriesWriter::create(&a.output, Some(title.clone()), Some("frame".into()))?;
     if a.raw {
         writer = writer.raw();
     }
@@ -104,9 +137,9 @@ pub fn run(a: CloudArgs) -> Result<()> {
     if !a.quiet {
         let c = sim.counts;
         eprintln!(
-            "wrote {} frames of a {} cloud to {} ({} puffs; N_frame {}, N_max {}, N_min {}, N_ext {}, t_v {}, t_e {}; {} particles at the end)",
+            "wrote {} frames of a {} to {} ({} puffs; N_frame {}, N_max {}, N_min {}, N_ext {}, t_v {}, t_e {}; {} particles at the end)",
             frames,
-            sim.options.kind.name(),
+            title,
             writer.dir().display(),
             sim.puffs.len(),
             c.n_frame,

@@ -95,6 +95,9 @@ pub struct Puff {
     pub squash: f32,
     /// Height (voxels) below which the puff is cut off: flat cloud bases.
     pub base: f32,
+    /// Density weight of its particles (1; from the weather model's cloud
+    /// water for `--from-wrf`).
+    pub weight: f32,
 }
 
 impl Puff {
@@ -210,8 +213,71 @@ const SINGLE_GROWTH: u32 = 24;
 impl CloudSim {
     /// Lays out the puffs of `options.kind` over the grid.
     pub fn new(options: CloudOptions) -> Result<CloudSim> {
+        Self::check(&options)?;
+        let mut rng = Rng::new(options.seed);
+        let puffs = layout(options.kind, options.grid, &mut rng);
+        Ok(Self::with_puffs(options, puffs, rng))
+    }
+
+    /// The paper's path (S3): particles seeded where a weather model has
+    /// cloud water. Every cell of `field` (e.g. WRF QCLOUD) above 1 % of
+    /// its maximum becomes a puff at the same place in the output grid,
+    /// its radius the cell's size and its particles' density weight the
+    /// cell's value over the maximum; the field's extent maps onto the
+    /// whole grid.
+    pub fn from_field(options: CloudOptions, field: &Volume) -> Result<CloudSim> {
+        Self::check(&options)?;
+        let mut rng = Rng::new(options.seed);
+        let fd = field.dims();
+        let max = field.stats().max;
+        if !(max > 0.0 && max.is_finite()) {
+            return Err(Error::invalid(format!(
+                "{}: the field has no positive value to seed cloud particles from",
+                field.name.as_deref().unwrap_or("field")
+            )));
+        }
+        let g = options.grid.map(|d| d as f32);
+        let scale = Vec3::new(
+            g[0] / fd[0] as f32,
+            g[1] / fd[1] as f32,
+            g[2] / fd[2] as f32,
+        );
+        let mut puffs = Vec::new();
+        for k in 0..fd[2] {
+            for j in 0..fd[1] {
+                for i in 0..fd[0] {
+                    let q = field.value(i, j, k);
+                    if !(q > 0.01 * max) {
+                        continue;
+                    }
+                    let w = q / max;
+                    let r = scale.x.max(scale.y) * (0.8 + 0.6 * rng.f32());
+                    let c = (Vec3::new(i as f32, j as f32, k as f32) + Vec3::splat(0.5)) * scale
+                        + Vec3::new(rng.range(-0.3, 0.3), rng.range(-0.3, 0.3), 0.0) * scale;
+                    puffs.push(Puff {
+                        centre: c,
+                        radius: r,
+                        squash: (1.5 * scale.z / r).clamp(0.1, 1.0),
+                        base: 0.0,
+                        weight: w.sqrt(),
+                    });
+                }
+            }
+        }
+        if puffs.is_empty() {
+            return Err(Error::invalid(
+                "the field holds no cloud to seed particles from",
+            ));
+        }
+        let mut sim = Self::with_puffs(options, puffs, rng);
+        sim.wind = Vec3::ZERO;
+        Ok(sim)
+    }
+
+    fn check(options: &CloudOptions) -> Result<()> {
         let [nx, ny, nz] = options.grid;
-        if nx < 8 || ny < 8 || nz < 8 || nx * ny * nz > 1 << 30 {
+        let n = nx.checked_mul(ny).and_then(|n| n.checked_mul(nz));
+        if nx < 8 || ny < 8 || nz < 8 || n.is_none_or(|n| n > 1 << 30) {
             return Err(Error::invalid(format!(
                 "cloud grid {nx}×{ny}×{nz}: each side must be at least 8 voxels and the grid at most 2³⁰ voxels"
             )));
@@ -222,8 +288,10 @@ impl CloudSim {
                 options.frames
             )));
         }
-        let mut rng = Rng::new(options.seed);
-        let puffs = layout(options.kind, options.grid, &mut rng);
+        Ok(())
+    }
+
+    fn with_puffs(options: CloudOptions, puffs: Vec<Puff>, mut rng: Rng) -> CloudSim {
         // The total volume of the puffs sets the particle budget, so a
         // bigger grid gets proportionally more particles.
         let puff_volume: f32 = puffs
@@ -241,7 +309,9 @@ impl CloudSim {
             (options.frames / 4).max(1)
         };
         // About one particle per 60 voxels of puff at saturation.
-        let saturated = (puff_volume / 60.0).clamp(200.0, 400_000.0);
+        let saturated = (puff_volume / 60.0)
+            .max(8.0 * puffs.len() as f32)
+            .clamp(200.0, 400_000.0);
         let per_frame = saturated / growth as f32;
         let n_frame = (per_frame * 0.7) as u32;
         let n_max = (per_frame * 0.6) as u32;
@@ -257,7 +327,7 @@ impl CloudSim {
             t_v: growth,
             t_e: growth + slow,
         };
-        Ok(CloudSim {
+        CloudSim {
             wind: Vec3::new(rng.range(-0.4, 0.4), rng.range(-0.4, 0.4), 0.0),
             options,
             counts,
@@ -266,7 +336,7 @@ impl CloudSim {
             frame: 0,
             rng,
             last_removed: Vec::new(),
-        })
+        }
     }
 
     /// World (voxel) position of a particle.
@@ -422,7 +492,7 @@ impl CloudSim {
             .particles
             .iter()
             .map(|p| {
-                let w = ((p.age + 1) as f32 / 3.0).min(1.0);
+                let w = ((p.age + 1) as f32 / 3.0).min(1.0) * self.puffs[p.puff as usize].weight;
                 (self.position(p), p.size, w)
             })
             .collect();
@@ -571,6 +641,7 @@ fn layout(kind: CloudType, dims: [usize; 3], rng: &mut Rng) -> Vec<Puff> {
                         radius: r,
                         squash: (((top - base) * 0.5) / r).min(1.0),
                         base,
+                        weight: 1.0,
                     });
                 }
                 let n_top = rng.range(2.0, 5.0) as usize;
@@ -586,6 +657,7 @@ fn layout(kind: CloudType, dims: [usize; 3], rng: &mut Rng) -> Vec<Puff> {
                         radius: r,
                         squash: ((h - 2.0 - zc) / r).clamp(0.4, 1.0),
                         base,
+                        weight: 1.0,
                     });
                 }
             }
@@ -606,6 +678,7 @@ fn layout(kind: CloudType, dims: [usize; 3], rng: &mut Rng) -> Vec<Puff> {
                     radius: r,
                     squash: (thick / r).min(1.0),
                     base: 0.0,
+                    weight: 1.0,
                 });
             }
         }
