@@ -247,7 +247,7 @@ impl CloudSim {
             for j in 0..fd[1] {
                 for i in 0..fd[0] {
                     let q = field.value(i, j, k);
-                    if !(q > 0.01 * max) {
+                    if q.is_nan() || q <= 0.01 * max {
                         continue;
                     }
                     let w = q / max;
