@@ -49,6 +49,9 @@ pub enum Command {
     /// Frame rate of each sampling method, frame by frame over a series, with PSNR per frame.
     #[command(after_long_help = crate::bench_frames::BENCH_FRAMES_HELP)]
     BenchFrames(Box<crate::bench_frames::BenchFramesArgs>),
+    /// Simulate a cloud (S3 particle system) into a frame folder.
+    #[command(after_long_help = crate::cloud::CLOUD_HELP)]
+    Cloud(Box<crate::cloud::CloudArgs>),
 }
 
 const RENDER_HELP: &str = "\
@@ -360,10 +363,12 @@ pub struct RenderArgs {
     /// where the transfer function is opaque, S1 eq. 7); the physically based
     /// integrators single-scatter (optical model 4: lights with shadows) and
     /// path (model 5: volumetric path tracing), which ignore the transfer
-    /// function and use the medium options below; append
+    /// function and use the medium options below; lod (S3: octree, empty
+    /// subtrees skipped, every k-th uniform sample with k odd where a leaf
+    /// contributes much, even where little); append
     /// +grouped for S0's grouped interpolation, +noskip to turn empty-space
-    /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive]
-    /// and [render.threshold] in a scene file.
+    /// skipping off (e.g. adaptive+grouped). Parameters: [render.adaptive],
+    /// [render.threshold] and [render.lod] in a scene file.
     #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
     pub method: Option<String>,
 }

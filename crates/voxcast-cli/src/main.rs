@@ -7,6 +7,7 @@ mod bench_frames;
 mod chart;
 mod frames_chart;
 mod simulate;
+mod cloud;
 
 use anyhow::{bail, Context, Result};
 use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};
@@ -26,6 +27,7 @@ fn main() {
         Command::Bench(a) => bench(*a),
         Command::Info(a) => info(a),
         Command::Compare(a) => compare(a),
+        Command::Cloud(a) => cloud::run(*a),
         Command::Presets => {
             presets();
             Ok(())
@@ -341,6 +343,14 @@ fn info(a: InfoArgs) -> Result<()> {
     } else {
         None
     };
+    // A WRF file: its 3D fields and times.
+    let wrf = if voxcast::io::detect(Path::new(&a.input), &scene.input.options).ok()
+        == Some(voxcast::io::Format::Wrf)
+    {
+        Some(voxcast::io::wrf::summary(Path::new(&a.input))?)
+    } else {
+        None
+    };
     let s = *vol.stats();
     let hist = vol.histogram(256);
     let pct = [0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99].map(|q| (q, hist.quantile(q)));
@@ -367,6 +377,7 @@ fn info(a: InfoArgs) -> Result<()> {
             "variables": vol.variables,
             "active_voxels": vol.active_voxels,
             "fds": fds,
+            "wrf": wrf,
             "time": vol.time,
         });
         println!("{}", serde_json::to_string_pretty(&j)?);
@@ -417,6 +428,12 @@ fn info(a: InfoArgs) -> Result<()> {
     }
     if let Some(lines) = &fds {
         println!("  FDS case");
+        for l in lines {
+            println!("    {l}");
+        }
+    }
+    if let Some(lines) = &wrf {
+        println!("  WRF output");
         for l in lines {
             println!("    {l}");
         }

@@ -20,6 +20,7 @@ mod test_support;
 pub mod util;
 pub mod vdb;
 pub mod vtk;
+pub mod wrf;
 
 use crate::error::{Error, Result};
 use crate::volume::{ScalarType, Volume};
@@ -73,6 +74,8 @@ pub enum Format {
     Series,
     /// Mitsuba's binary grid (`.vol`, "VOL" version 3).
     MitsubaVol,
+    /// WRF output (NetCDF-4 / NetCDF classic; needs the `wrf` feature).
+    Wrf,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -116,6 +119,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::Fds)
     } else if name.ends_with(".vol") {
         Some(Format::MitsubaVol)
+    } else if wrf::is_wrf_name(&name) {
+        Some(Format::Wrf)
     } else {
         None
     };
@@ -136,6 +141,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Ok(Format::Vdb)
     } else if mitsuba_vol::is_vol(&head) {
         Ok(Format::MitsubaVol)
+    } else if wrf::is_netcdf_magic(&head) {
+        Ok(Format::Wrf)
     } else if head.starts_with(b"ObjectType") || head.starts_with(b"NDims") {
         Ok(Format::MetaImage)
     } else if head.starts_with(b"\x89PNG")
@@ -151,7 +158,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv .vol, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }
@@ -168,6 +175,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
         Format::Vdb => vdb::read(path, opts)?,
         Format::Fds => fds::read(path, opts)?,
+        Format::Wrf => wrf::read(path, opts)?,
         Format::Series => {
             // One frame of the series: the nearest to `--time`, else the last.
             let s = crate::volume::Series::open_folder(path)?;

@@ -5,9 +5,11 @@
 
 pub mod blocks;
 pub mod light;
+pub mod lod;
 pub mod majorant;
 pub mod march;
 pub mod medium;
+pub mod octree;
 pub mod optics;
 mod path;
 pub mod phase;
@@ -70,10 +72,14 @@ pub enum Method {
     /// Optical model 5: volumetric path tracing (delta tracking, ratio
     /// tracking, next-event estimation, Russian roulette, majorant grid).
     Path,
+    /// S3: octree traversal skipping empty subtrees, with equidistant
+    /// decimation of the uniform samples per leaf (odd spacings where the
+    /// contribution is high, even where it is low).
+    Lod,
 }
 
 impl Method {
-    pub const ALL: [Method; 10] = [
+    pub const ALL: [Method; 11] = [
         Method::Uniform,
         Method::Adaptive,
         Method::AdaptiveMax,
@@ -84,6 +90,7 @@ impl Method {
         Method::Importance,
         Method::SingleScatter,
         Method::Path,
+        Method::Lod,
     ];
 
     /// The physically based integrators (`render/path.rs`).
@@ -123,6 +130,7 @@ impl Method {
             Method::Importance => "importance",
             Method::SingleScatter => "single-scatter",
             Method::Path => "path",
+            Method::Lod => "lod",
         }
     }
 
@@ -262,6 +270,8 @@ pub struct RenderParams {
     pub lights: Vec<light::Light>,
     /// The medium of `single-scatter` and `path`.
     pub medium: medium::MediumParams,
+    /// Parameters of `lod` (S3).
+    pub lod: lod::LodParams,
 }
 
 impl Default for RenderParams {
@@ -286,6 +296,7 @@ impl Default for RenderParams {
             spp: 1,
             lights: Vec::new(),
             medium: medium::MediumParams::default(),
+            lod: lod::LodParams::default(),
         }
     }
 }
@@ -347,6 +358,7 @@ impl RenderParams {
                 "adaptive: k_ref must be positive and min/max steps 0.001…64 voxels",
             ));
         }
+        self.lod.validate()?;
         if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
             return Err(Error::invalid("background: each component must be in 0…1"));
         }
@@ -387,6 +399,8 @@ pub struct Renderer<'v> {
 struct Derived {
     blocks: BlockGrid,
     max_gradient: std::sync::OnceLock<Vec<f32>>,
+    /// The S3 octree over the blocks (for `lod`, built on first use).
+    octree: std::sync::OnceLock<octree::Octree>,
 }
 
 impl<'v> Renderer<'v> {
@@ -446,6 +460,7 @@ impl<'v> Renderer<'v> {
         let d = Arc::new(Derived {
             blocks,
             max_gradient: std::sync::OnceLock::new(),
+            octree: std::sync::OnceLock::new(),
         });
         list.push((size, d.clone()));
         d
@@ -520,6 +535,7 @@ impl<'v> Renderer<'v> {
                 light: crate::geometry::SurfaceLight::new(g.light, &cam),
                 shadows: g.shadows,
             }),
+            tree,
         };
         let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
         stats.seconds = start.elapsed().as_secs_f64();
@@ -551,6 +567,7 @@ struct Job<'a> {
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
     max_gradient: &'a [f32],
+    tree: Option<&'a octree::Octree>,
     lut: Lut,
     cam: Camera,
     params: &'a RenderParams,
@@ -595,6 +612,9 @@ impl Job<'_> {
             .iter()
             .map(|&r| self.lut.alphas(r))
             .collect();
+        let lod_ray = self
+            .tree
+            .map(|t| lod::LodRay::new(t, &self.empty, &self.lut, &p.lod, p.step, self.unit));
         let ctx = RayCtx {
             grid,
             lut: &self.lut,
@@ -627,6 +647,7 @@ impl Job<'_> {
             seed: p.seed,
             pass: 0,
             block_sigma: self.block_sigma,
+            lod: lod_ray.as_ref(),
         };
         // Deterministic methods give the same image every pass.
         let passes = if p.method.is_stochastic() || p.jitter {

@@ -59,6 +59,8 @@ pub(super) struct RayCtx<'a, T> {
     pub pass: u32,
     /// `importance`: largest extinction per block under the TF (its pdf).
     pub block_sigma: &'a [f32],
+    /// S3 octree + LOD: the octree and the spacing tables (`lod` only).
+    pub lod: Option<&'a super::lod::LodRay<'a>>,
 }
 
 // Manual impls: a derive would demand `T: Copy`, but only references to T
@@ -73,16 +75,16 @@ impl<T> Copy for RayCtx<'_, T> {}
 /// A sample evaluated but not yet composited (its stretch of ray is known
 /// only when the next sample's position is).
 #[derive(Clone, Copy)]
-struct Pending {
-    t: f32,
-    entry: usize,
-    rgb: Vec3,
+pub(super) struct Pending {
+    pub t: f32,
+    pub entry: usize,
+    pub rgb: Vec3,
 }
 
 /// Accumulated colour and opacity, in either order.
 pub(super) struct Acc<'s> {
     c: Vec3,
-    a: f32,
+    pub a: f32,
     ert: f32,
     back: Option<&'s mut Vec<(Vec3, f32)>>,
 }
@@ -145,7 +147,7 @@ pub(super) fn evaluate<T: Voxel>(
 pub(super) struct Counters {
     pub samples: u64,
     pub interpolations: u64,
-    shaded: u64,
+    pub shaded: u64,
 }
 
 /// Casts one ray; returns premultiplied linear colour and opacity (before
@@ -200,7 +202,9 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     };
     let mut n = Counters::default();
     let walker = BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts);
-    let terminated = if ctx.method == Method::Threshold {
+    let terminated = if let (Method::Lod, Some(lod)) = (ctx.method, ctx.lod) {
+        super::lod::march_lod::<T, O>(ctx, lod, o, d, -dir, t0, t_in, t_out, &mut acc, &mut n)
+    } else if ctx.method == Method::Threshold {
         march_threshold::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
     } else if ctx.method.is_monte_carlo() {
         super::stochastic::march::<T, O>(ctx, o, d, -dir, t_in, t_out, pixel, &mut acc, &mut n)

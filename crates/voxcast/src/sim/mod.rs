@@ -1,9 +1,11 @@
-//! Simulators that produce volumes: incompressible smoke with fire, heat,
+//! Simulators that produce volumes: cloud particle systems ([`cloud`]) and
+//! incompressible smoke with fire, heat,
 //! obstacles and openings ([`smoke`]), written frame by frame as a
 //! [`crate::volume::Series`] folder with the scene's solids beside it
 //! (`geometry.toml`, read by the renderer).
 
 pub mod advect;
+pub mod cloud;
 pub mod pressure;
 pub mod scenes;
 pub mod smoke;
