@@ -519,6 +519,17 @@ impl<'v> Renderer<'v> {
         } else {
             Vec::new()
         };
+        let tree = (params.method == Method::Lod).then(|| {
+            derived.octree.get_or_init(|| {
+                volume.visit(
+                    self.window[0],
+                    self.window[1],
+                    octree::BuildOctree {
+                        leaf: derived.blocks.size,
+                    },
+                )
+            })
+        });
         let job = Job {
             block_sigma: &block_sigma,
             volume,
