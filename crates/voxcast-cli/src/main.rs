@@ -5,9 +5,9 @@ mod animate;
 mod args;
 mod bench_frames;
 mod chart;
+mod cloud;
 mod frames_chart;
 mod simulate;
-mod cloud;
 
 use anyhow::{bail, Context, Result};
 use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};

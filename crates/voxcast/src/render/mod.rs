@@ -17,8 +17,8 @@ mod ray;
 pub mod rng;
 pub mod shading;
 pub mod stats;
-mod surface;
 mod stochastic;
+mod surface;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
