@@ -17,7 +17,13 @@ Volume rendering by ray casting: CT/MRI scans, smoke, clouds.
 Start with `voxcast render` (renders the built-in demo to render.png), then
 `voxcast render YOUR_VOLUME -o out.png`. Inputs: NRRD (.nrrd/.nhdr), MetaImage
 (.mhd/.mha), legacy VTK (.vtk), NIfTI (.nii/.nii.gz), DICOM folders, folders or
-globs of PNG/TIFF slices, raw files with --raw-dims, and builtin:NAME.";
+globs of PNG/TIFF slices, OpenVDB (.vdb), FDS cases (.smv), Mitsuba grids
+(.vol), WRF output (.nc, with --features wrf), frame folders (series.toml),
+raw files with --raw-dims, and builtin:NAME.
+
+Make volumes with `voxcast simulate smoke` (a fire in a room) and `voxcast
+cloud` (S3 particle clouds); turn a series into a GIF or MP4 with `voxcast
+animate`; measure methods with `voxcast bench` and `voxcast bench-frames`.";
 
 #[derive(Parser)]
 #[command(name = "voxcast", version, about = ABOUT, long_about = LONG_ABOUT)]
