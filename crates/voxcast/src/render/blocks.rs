@@ -45,12 +45,12 @@ impl BlockGrid {
 
 /// Number of blocks per axis for `dims` voxels (blocks cover the
 /// `dims − 1` cells; a one-voxel axis has one block).
-fn block_counts(dims: [usize; 3], b: usize) -> [usize; 3] {
+pub(super) fn block_counts(dims: [usize; 3], b: usize) -> [usize; 3] {
     dims.map(|d| d.saturating_sub(1).div_ceil(b).max(1))
 }
 
 /// Runs `f(voxel range lo..=hi per axis)` for every block, in parallel.
-fn per_block<R: Send>(
+pub(super) fn per_block<R: Send>(
     dims: [usize; 3],
     b: usize,
     f: impl Fn([usize; 3], [usize; 3]) -> R + Sync,

@@ -9,7 +9,6 @@
 
 use crate::volume::{Grid, GridVisitor, Voxel};
 use glam::Vec3;
-use rayon::prelude::*;
 
 /// Statistics of one node, normalised to the data window.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -95,37 +94,28 @@ impl GridVisitor for BuildOctree {
         let b = self.leaf.max(1);
         let dims = grid.dims();
         let (scale, offset) = grid.scale_offset();
-        let counts = dims.map(|d| d.saturating_sub(1).div_ceil(b).max(1));
-        let leaves: Vec<Node> = (0..counts[0] * counts[1] * counts[2])
-            .into_par_iter()
-            .map(|idx| {
-                let bi = [
-                    idx % counts[0],
-                    idx / counts[0] % counts[1],
-                    idx / (counts[0] * counts[1]),
-                ];
-                let lo = bi.map(|c| c * b);
-                let hi = [0, 1, 2].map(|a| ((bi[a] + 1) * b).min(dims[a] - 1));
-                let (mut mn, mut mx, mut sum, mut n) =
-                    (f32::INFINITY, f32::NEG_INFINITY, 0.0f64, 0u64);
-                for k in lo[2]..=hi[2] {
-                    for j in lo[1]..=hi[1] {
-                        for v in &grid.row(j, k)[lo[0]..=hi[0]] {
-                            let v = v.to_f32();
-                            mn = mn.min(v);
-                            mx = mx.max(v);
-                            sum += v as f64;
-                            n += 1;
-                        }
+        // The same blocks as the block grid (empty-space skipping), so a
+        // leaf's range is its block's range.
+        let counts = super::blocks::block_counts(dims, b);
+        let leaves: Vec<Node> = super::blocks::per_block(dims, b, |lo, hi| {
+            let (mut mn, mut mx, mut sum, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f64, 0u64);
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    for v in &grid.row(j, k)[lo[0]..=hi[0]] {
+                        let v = v.to_f32();
+                        mn = mn.min(v);
+                        mx = mx.max(v);
+                        sum += v as f64;
+                        n += 1;
                     }
                 }
-                Node {
-                    min: mn * scale + offset,
-                    max: mx * scale + offset,
-                    mean: (sum / n.max(1) as f64) as f32 * scale + offset,
-                }
-            })
-            .collect();
+            }
+            Node {
+                min: mn * scale + offset,
+                max: mx * scale + offset,
+                mean: (sum / n.max(1) as f64) as f32 * scale + offset,
+            }
+        });
         let mut levels = vec![Level {
             counts,
             nodes: leaves,
