@@ -19,6 +19,7 @@ pub mod shading;
 pub mod stats;
 mod stochastic;
 mod surface;
+mod tiles;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
@@ -33,10 +34,8 @@ use glam::Vec3;
 pub use march::{AdaptiveParams, ThresholdParams};
 use optics::{AbsorptionOnly, EmissionAbsorption, EmissionOnly, Optics};
 use ray::RayCtx;
-use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use shading::BlinnPhong;
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -366,9 +365,6 @@ impl RenderParams {
     }
 }
 
-/// Side of a square tile in pixels.
-const TILE: u32 = 16;
-
 /// Renders `volume` with `tf` over the data window `window`, seen by
 /// `camera`. `progress(done, total)` is called after each tile. For repeated
 /// renders of one volume, make a [`Renderer`] once instead.
@@ -666,48 +662,26 @@ impl Job<'_> {
         } else {
             1
         };
-        let tiles_x = w.div_ceil(TILE);
-        let tiles_y = h.div_ceil(TILE);
-        let total = (tiles_x * tiles_y) as usize;
-        let done = AtomicUsize::new(0);
         let bg = Vec3::from(self.params.background.map(srgb_to_linear));
-        let tiles: Vec<(u32, u32, Vec<[f32; 4]>, RenderStats)> = (0..tiles_x * tiles_y)
-            .into_par_iter()
-            .map(|ti| {
-                let (tx, ty) = (ti % tiles_x * TILE, ti / tiles_x * TILE);
-                let mut stats = RenderStats::default();
-                let mut scratch: Vec<(Vec3, f32)> = Vec::new();
-                let mut px = Vec::with_capacity((TILE * TILE) as usize);
-                for y in ty..(ty + TILE).min(h) {
-                    for x in tx..(tx + TILE).min(w) {
-                        let (o, d) = self.cam.ray(x, y);
-                        let mut c = glam::Vec4::ZERO;
-                        for pass in 0..passes {
-                            let mut ctx = ctx;
-                            ctx.pass = pass;
-                            c += ray::trace::<T, O>(&ctx, o, d, (x, y), &mut stats, &mut scratch);
-                        }
-                        // Progressive average of premultiplied colour (linear).
-                        let c = c / passes as f32;
-                        let rgb = c.truncate() + bg * (1.0 - c.w);
-                        px.push([rgb.x, rgb.y, rgb.z, c.w]);
-                    }
+        tiles::render_tiles(
+            w,
+            h,
+            self.progress,
+            Vec::<(Vec3, f32)>::new,
+            |scratch, stats, x, y| {
+                let (o, d) = self.cam.ray(x, y);
+                let mut c = glam::Vec4::ZERO;
+                for pass in 0..passes {
+                    let mut ctx = ctx;
+                    ctx.pass = pass;
+                    c += ray::trace::<T, O>(&ctx, o, d, (x, y), stats, scratch);
                 }
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                (self.progress)(n, total);
-                (tx, ty, px, stats)
-            })
-            .collect();
-        let mut image = Image::new(w, h);
-        let mut stats = RenderStats::default();
-        for (tx, ty, px, s) in tiles {
-            stats.add(&s);
-            let tw = (tx + TILE).min(w) - tx;
-            for (i, p) in px.into_iter().enumerate() {
-                let (x, y) = (tx + i as u32 % tw, ty + i as u32 / tw);
-                image.set(x, y, p);
-            }
-        }
-        (image, stats)
+                // Progressive average of premultiplied colour (linear).
+                let c = c / passes as f32;
+                let rgb = c.truncate() + bg * (1.0 - c.w);
+                [rgb.x, rgb.y, rgb.z, c.w]
+            },
+            |_, _| {},
+        )
     }
 }

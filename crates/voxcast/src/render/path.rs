@@ -29,13 +29,11 @@ use super::medium::MediumParams;
 use super::phase::{Phase, PhaseVisitor};
 use super::rng::Rng;
 use super::stats::RenderStats;
-use super::{BlockGrid, RenderParams, TILE};
+use super::{BlockGrid, RenderParams};
 use crate::camera::Camera;
 use crate::image::Image;
 use crate::volume::{Grid, GridVisitor, Volume, Voxel};
 use glam::Vec3;
-use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// The medium as the trackers see it: world ↔ voxel mapping, density grid,
 /// majorant. Shared by both integrators and by the tests.
@@ -293,51 +291,30 @@ impl<T: Voxel> PhaseVisitor for WithGrid<'_, '_, T> {
             single: job.params.method == super::Method::SingleScatter,
         };
         let p = job.params;
-        let (w, h) = (p.width, p.height);
-        let tiles_x = w.div_ceil(TILE);
-        let tiles_y = h.div_ceil(TILE);
-        let total = (tiles_x * tiles_y) as usize;
-        let done = AtomicUsize::new(0);
-        let tiles: Vec<(u32, u32, Vec<[f32; 4]>, RenderStats)> = (0..tiles_x * tiles_y)
-            .into_par_iter()
-            .map(|ti| {
-                let (tx, ty) = (ti % tiles_x * TILE, ti / tiles_x * TILE);
-                let mut stats = RenderStats::default();
-                let mut work = Work::default();
-                let mut px = Vec::with_capacity((TILE * TILE) as usize);
-                for y in ty..(ty + TILE).min(h) {
-                    for x in tx..(tx + TILE).min(w) {
-                        let mut sum = Vec3::ZERO;
-                        for pass in 0..p.spp {
-                            let mut rng = Rng::for_pixel(p.seed, x, y, pass);
-                            // A random position in the pixel (box filter).
-                            let (o, d) = job
-                                .cam
-                                .ray_at(x as f32 + rng.uniform(), y as f32 + rng.uniform());
-                            sum += integ.li(&m, o, d, &mut rng, &mut work);
-                        }
-                        stats.rays += p.spp as u64;
-                        let c = sum / p.spp as f32;
-                        px.push([c.x, c.y, c.z, 1.0]);
-                    }
+        super::tiles::render_tiles(
+            p.width,
+            p.height,
+            job.progress,
+            Work::default,
+            |work, stats, x, y| {
+                let mut sum = Vec3::ZERO;
+                for pass in 0..p.spp {
+                    let mut rng = Rng::for_pixel(p.seed, x, y, pass);
+                    // A random position in the pixel (box filter).
+                    let (o, d) = job
+                        .cam
+                        .ray_at(x as f32 + rng.uniform(), y as f32 + rng.uniform());
+                    sum += integ.li(&m, o, d, &mut rng, work);
                 }
+                stats.rays += p.spp as u64;
+                let c = sum / p.spp as f32;
+                [c.x, c.y, c.z, 1.0]
+            },
+            |work, stats| {
                 stats.samples = work.tentative;
                 stats.interpolations = work.lookups;
-                let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-                (job.progress)(n, total);
-                (tx, ty, px, stats)
-            })
-            .collect();
-        let mut image = Image::new(w, h);
-        let mut stats = RenderStats::default();
-        for (tx, ty, px, s) in tiles {
-            stats.add(&s);
-            let tw = (tx + TILE).min(w) - tx;
-            for (i, c) in px.into_iter().enumerate() {
-                image.set(tx + i as u32 % tw, ty + i as u32 / tw, c);
-            }
-        }
-        (image, stats)
+            },
+        )
     }
 }
 

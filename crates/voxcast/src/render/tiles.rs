@@ -1,0 +1,58 @@
+//! The image cut into square tiles rendered in parallel by rayon — the
+//! frame every integrator (the ray caster, the path tracer) fills with its
+//! own per-pixel function. Statistics are counted per tile and summed, so
+//! no pixel takes a lock.
+
+use super::stats::RenderStats;
+use crate::image::Image;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// Side of a square tile in pixels.
+pub(super) const TILE: u32 = 16;
+
+/// Renders a `w`×`h` image tile by tile: each tile makes its scratch state
+/// with `state`, calls `pixel(state, stats, x, y)` for its pixels (linear
+/// RGBA), then `finish(state, stats)`; `progress(done, total)` is called
+/// after each tile. Generic, so the per-pixel call is inlined.
+pub(super) fn render_tiles<S>(
+    w: u32,
+    h: u32,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    state: impl Fn() -> S + Sync,
+    pixel: impl Fn(&mut S, &mut RenderStats, u32, u32) -> [f32; 4] + Sync,
+    finish: impl Fn(S, &mut RenderStats) + Sync,
+) -> (Image, RenderStats) {
+    let tiles_x = w.div_ceil(TILE);
+    let tiles_y = h.div_ceil(TILE);
+    let total = (tiles_x * tiles_y) as usize;
+    let done = AtomicUsize::new(0);
+    let tiles: Vec<(u32, u32, Vec<[f32; 4]>, RenderStats)> = (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map(|ti| {
+            let (tx, ty) = (ti % tiles_x * TILE, ti / tiles_x * TILE);
+            let mut stats = RenderStats::default();
+            let mut s = state();
+            let mut px = Vec::with_capacity((TILE * TILE) as usize);
+            for y in ty..(ty + TILE).min(h) {
+                for x in tx..(tx + TILE).min(w) {
+                    px.push(pixel(&mut s, &mut stats, x, y));
+                }
+            }
+            finish(s, &mut stats);
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            progress(n, total);
+            (tx, ty, px, stats)
+        })
+        .collect();
+    let mut image = Image::new(w, h);
+    let mut stats = RenderStats::default();
+    for (tx, ty, px, s) in tiles {
+        stats.add(&s);
+        let tw = (tx + TILE).min(w) - tx;
+        for (i, p) in px.into_iter().enumerate() {
+            image.set(tx + i as u32 % tw, ty + i as u32 / tw, p);
+        }
+    }
+    (image, stats)
+}
