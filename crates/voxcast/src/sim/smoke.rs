@@ -632,25 +632,11 @@ impl Smoke {
         }
         // Onto the faces: the average of the two cells' forces.
         let (fu, fv, fw) = (&*cu, &*cv, &*cw);
+        let dims = self.dims;
         let add = |vel: &mut Vec<f32>, free: &Vec<bool>, f: &[f32], axis: usize| {
-            let mut fd = [nx, ny, nz];
-            fd[axis] += 1;
-            let stride = [1, nx, slab][axis];
-            vel.par_chunks_mut(fd[0] * fd[1])
-                .enumerate()
-                .for_each(|(k, vs)| {
-                    for j in 0..fd[1] {
-                        for i in 0..fd[0] {
-                            let o = i + fd[0] * j;
-                            if !free[o + k * fd[0] * fd[1]] {
-                                continue;
-                            }
-                            // The cell on the + side of this face.
-                            let r = i + nx * (j + ny * k);
-                            vs[o] += dt * 0.5 * (f[r] + f[r - stride]);
-                        }
-                    }
-                });
+            for_free_faces(dims, vel, free, axis, |v, r, l| {
+                *v += dt * 0.5 * (f[r] + f[l]);
+            });
         };
         add(&mut self.u, &self.free_u, fu, 0);
         add(&mut self.v, &self.free_v, fv, 1);
@@ -689,30 +675,14 @@ impl Smoke {
         let stats = self.solver.solve(&mut self.rhs, &mut self.pressure);
         let p = &self.pressure;
         let flags = &self.flags;
-        let nz = self.dims[2];
+        let dims = self.dims;
         let sub = |vel: &mut Vec<f32>, free: &Vec<bool>, axis: usize| {
-            let mut fd = [nx, ny, nz];
-            fd[axis] += 1;
-            let stride = [1, nx, slab][axis];
-            vel.par_chunks_mut(fd[0] * fd[1])
-                .enumerate()
-                .for_each(|(k, vs)| {
-                    for j in 0..fd[1] {
-                        for i in 0..fd[0] {
-                            let o = i + fd[0] * j;
-                            if !free[o + k * fd[0] * fd[1]] {
-                                continue;
-                            }
-                            let r = i + nx * (j + ny * k);
-                            let l = r - stride;
-                            if flags[r] != FLUID && flags[l] != FLUID {
-                                continue;
-                            }
-                            // Non-fluid cells hold p = 0 (open air).
-                            vs[o] -= p[r] - p[l];
-                        }
-                    }
-                });
+            for_free_faces(dims, vel, free, axis, |v, r, l| {
+                // Non-fluid cells hold p = 0 (open air).
+                if flags[r] == FLUID || flags[l] == FLUID {
+                    *v -= p[r] - p[l];
+                }
+            });
         };
         sub(&mut self.u, &self.free_u, 0);
         sub(&mut self.v, &self.free_v, 1);
@@ -733,6 +703,36 @@ impl Smoke {
         v.time = Some(self.time);
         Ok(v)
     }
+}
+
+/// Calls `f(value, r, l)` for every free face of velocity component `axis`
+/// (a staggered grid one longer along `axis`), in parallel by z-slab; `r`
+/// and `l` are the cells on the + and − side of the face.
+fn for_free_faces(
+    dims: [usize; 3],
+    vel: &mut [f32],
+    free: &[bool],
+    axis: usize,
+    f: impl Fn(&mut f32, usize, usize) + Sync,
+) {
+    let [nx, ny, nz] = dims;
+    let mut fd = [nx, ny, nz];
+    fd[axis] += 1;
+    let stride = [1, nx, nx * ny][axis];
+    vel.par_chunks_mut(fd[0] * fd[1])
+        .enumerate()
+        .for_each(|(k, vs)| {
+            for j in 0..fd[1] {
+                for i in 0..fd[0] {
+                    let o = i + fd[0] * j;
+                    if !free[o + k * fd[0] * fd[1]] {
+                        continue;
+                    }
+                    let r = i + nx * (j + ny * k);
+                    f(&mut vs[o], r, r - stride);
+                }
+            }
+        });
 }
 
 #[cfg(test)]
