@@ -24,9 +24,23 @@ impl Field<'_> {
     #[inline(always)]
     pub fn sample(&self, p: [f32; 3]) -> f32 {
         let [nx, ny, nz] = self.dims;
-        let (i, fx) = lattice(p[0] - self.offset[0], nx);
-        let (j, fy) = lattice(p[1] - self.offset[1], ny);
-        let (k, fz) = lattice(p[2] - self.offset[2], nz);
+        self.sample_at(
+            lattice(p[0] - self.offset[0], nx),
+            lattice(p[1] - self.offset[1], ny),
+            lattice(p[2] - self.offset[2], nz),
+        )
+    }
+
+    /// Trilinear interpolation from the lower lattice index and fraction
+    /// along each axis ([`lattice`]).
+    #[inline(always)]
+    fn sample_at(
+        &self,
+        (i, fx): (usize, f32),
+        (j, fy): (usize, f32),
+        (k, fz): (usize, f32),
+    ) -> f32 {
+        let [nx, ny, nz] = self.dims;
         let (di, dj, dk) = (
             usize::from(nx > 1),
             if ny > 1 { nx } else { 0 },
@@ -95,7 +109,20 @@ impl<'a> Mac<'a> {
     /// Velocity at `p` (cell units).
     #[inline(always)]
     pub fn at(&self, p: [f32; 3]) -> [f32; 3] {
-        [self.u.sample(p), self.v.sample(p), self.w.sample(p)]
+        // Along each axis one component's lattice sits on the faces and the
+        // other two on the centres: two lattice look-ups per axis, not three.
+        let (u, v, w) = (&self.u, &self.v, &self.w);
+        let x_face = lattice(p[0] - u.offset[0], u.dims[0]);
+        let x_cell = lattice(p[0] - v.offset[0], v.dims[0]);
+        let y_face = lattice(p[1] - v.offset[1], v.dims[1]);
+        let y_cell = lattice(p[1] - u.offset[1], u.dims[1]);
+        let z_face = lattice(p[2] - w.offset[2], w.dims[2]);
+        let z_cell = lattice(p[2] - u.offset[2], u.dims[2]);
+        [
+            u.sample_at(x_face, y_cell, z_cell),
+            v.sample_at(x_cell, y_face, z_cell),
+            w.sample_at(x_cell, y_cell, z_face),
+        ]
     }
 
     /// Where the particle now at `p` was `dt` ago: second-order
