@@ -23,6 +23,10 @@ use crate::volume::{Volume, VoxelData};
 use glam::Vec3;
 use rayon::prelude::*;
 
+/// The longest grid row (cells along x) the density update's row buffers
+/// hold; scene validation allows up to this.
+const MAX_ROW: usize = 1024;
+
 /// What one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepStats {
@@ -64,6 +68,10 @@ pub struct Smoke {
     solver: PressureSolver,
     /// Fluid cells inside the source sphere.
     source_cells: Vec<usize>,
+    /// Open cells, in index order.
+    open_cells: Vec<usize>,
+    /// `nx` zeros: the density outside the grid.
+    zero_row: Vec<f32>,
     rng: u64,
     time: f64,
     steps: u64,
@@ -173,6 +181,8 @@ impl Smoke {
             work: std::array::from_fn(|_| vec![0.0; n]),
             solver,
             source_cells,
+            open_cells: (0..n).filter(|&c| flags[c] == OPEN).collect(),
+            zero_row: vec![0.0; nx],
             rng: scene.seed ^ 0x9E37_79B9_7F4A_7C15,
             scene: scene.clone(),
             dims,
@@ -342,93 +352,100 @@ impl Smoke {
         let substeps = ((courant / 0.6).ceil() as usize).clamp(1, 64);
         let scale = dt / self.h / substeps as f32;
         let vol = (self.h as f64).powi(3);
+        assert!(
+            nx <= MAX_ROW,
+            "grid rows are at most {MAX_ROW} cells (scene validation)"
+        );
         for _ in 0..substeps {
             let q = &self.density;
             let (u, v, w) = (&self.u, &self.v, &self.w);
             let flags = &self.flags;
+            let zero = &self.zero_row;
+            let slab = nx * ny;
+            // Row j of slab k of the density, zeros outside the grid.
+            let row = |j: isize, k: isize| -> &[f32] {
+                if j < 0 || k < 0 || j >= ny as isize || k >= nz as isize {
+                    zero
+                } else {
+                    let b = nx * (j as usize + ny * k as usize);
+                    &q[b..b + nx]
+                }
+            };
             self.scratch
-                .par_chunks_mut(nx * ny)
+                .par_chunks_mut(slab)
                 .enumerate()
                 .for_each(|(k, out)| {
-                    let at = |i: isize, j: isize, kk: isize| -> f32 {
-                        if i < 0
-                            || j < 0
-                            || kk < 0
-                            || i >= nx as isize
-                            || j >= ny as isize
-                            || kk >= nz as isize
-                        {
-                            0.0
-                        } else {
-                            q[i as usize + nx * (j as usize + ny * kk as usize)]
-                        }
-                    };
+                    // Each face's flux is computed once along x and y (and
+                    // twice along z, once by each slab beside it): the same
+                    // value, so what one cell loses the next gains.
+                    let mut pad = [0f32; MAX_ROW + 4];
+                    let mut fx = [0f32; MAX_ROW + 1];
+                    let mut fy_lo = [0f32; MAX_ROW];
+                    let mut fy_hi = [0f32; MAX_ROW];
+                    let kk = k as isize;
                     for j in 0..ny {
+                        let jj = j as isize;
+                        let qc = row(jj, kk);
+                        // x faces 0..=nx of the row, from the row padded
+                        // with two empty cells at each end.
+                        pad[2..nx + 2].copy_from_slice(qc);
+                        let ur = &u[(nx + 1) * (j + ny * k)..][..nx + 1];
+                        for f in 0..=nx {
+                            fx[f] = face_flux(
+                                ur[f] * scale,
+                                pad[f],
+                                pad[f + 1],
+                                pad[f + 2],
+                                pad[f + 3],
+                            );
+                        }
+                        // y faces j (from the row below) and j + 1.
+                        let vr = |f: usize| &v[nx * (f + (ny + 1) * k)..][..nx];
+                        if j == 0 {
+                            let (a, b, c, d) = (row(-2, kk), row(-1, kk), qc, row(1, kk));
+                            let vl = vr(0);
+                            for i in 0..nx {
+                                fy_lo[i] = face_flux(vl[i] * scale, a[i], b[i], c[i], d[i]);
+                            }
+                        } else {
+                            std::mem::swap(&mut fy_lo, &mut fy_hi);
+                        }
+                        {
+                            let (a, b, c, d) =
+                                (row(jj - 1, kk), qc, row(jj + 1, kk), row(jj + 2, kk));
+                            let vh = vr(j + 1);
+                            for i in 0..nx {
+                                fy_hi[i] = face_flux(vh[i] * scale, a[i], b[i], c[i], d[i]);
+                            }
+                        }
+                        let (zm2, zm1, zp1, zp2) = (
+                            row(jj, kk - 2),
+                            row(jj, kk - 1),
+                            row(jj, kk + 1),
+                            row(jj, kk + 2),
+                        );
+                        let wl = &w[nx * (j + ny * k)..][..nx];
+                        let wh = &w[nx * (j + ny * (k + 1))..][..nx];
+                        let fl = &flags[nx * (j + ny * k)..][..nx];
+                        let o = &mut out[nx * j..][..nx];
                         for i in 0..nx {
-                            let c = i + nx * (j + ny * k);
-                            let o = c - k * nx * ny;
-                            if flags[c] == SOLID {
-                                out[o] = 0.0;
+                            if fl[i] == SOLID {
+                                o[i] = 0.0;
                                 continue;
                             }
-                            let (ii, jj, kk) = (i as isize, j as isize, k as isize);
-                            let iu = i + (nx + 1) * (j + ny * k);
-                            let iv = i + nx * (j + (ny + 1) * k);
-                            let iw = c;
-                            let fx0 = face_flux(
-                                u[iu] * scale,
-                                at(ii - 2, jj, kk),
-                                at(ii - 1, jj, kk),
-                                q[c],
-                                at(ii + 1, jj, kk),
-                            );
-                            let fx1 = face_flux(
-                                u[iu + 1] * scale,
-                                at(ii - 1, jj, kk),
-                                q[c],
-                                at(ii + 1, jj, kk),
-                                at(ii + 2, jj, kk),
-                            );
-                            let fy0 = face_flux(
-                                v[iv] * scale,
-                                at(ii, jj - 2, kk),
-                                at(ii, jj - 1, kk),
-                                q[c],
-                                at(ii, jj + 1, kk),
-                            );
-                            let fy1 = face_flux(
-                                v[iv + nx] * scale,
-                                at(ii, jj - 1, kk),
-                                q[c],
-                                at(ii, jj + 1, kk),
-                                at(ii, jj + 2, kk),
-                            );
-                            let fz0 = face_flux(
-                                w[iw] * scale,
-                                at(ii, jj, kk - 2),
-                                at(ii, jj, kk - 1),
-                                q[c],
-                                at(ii, jj, kk + 1),
-                            );
-                            let fz1 = face_flux(
-                                w[iw + nx * ny] * scale,
-                                at(ii, jj, kk - 1),
-                                q[c],
-                                at(ii, jj, kk + 1),
-                                at(ii, jj, kk + 2),
-                            );
-                            out[o] = q[c] + (fx0 - fx1) + (fy0 - fy1) + (fz0 - fz1);
+                            let fz0 = face_flux(wl[i] * scale, zm2[i], zm1[i], qc[i], zp1[i]);
+                            let fz1 = face_flux(wh[i] * scale, zm1[i], qc[i], zp1[i], zp2[i]);
+                            o[i] =
+                                qc[i] + (fx[i] - fx[i + 1]) + (fy_lo[i] - fy_hi[i]) + (fz0 - fz1);
                         }
                     }
                 });
             std::mem::swap(&mut self.density, &mut self.scratch);
             // Whatever reached an open cell has left the room.
             let mut out = 0.0f64;
-            for (d, &f) in self.density.iter_mut().zip(&self.flags) {
-                if f == OPEN {
-                    out += *d as f64;
-                    *d = 0.0;
-                }
+            for &c in &self.open_cells {
+                out += self.density[c] as f64;
+                self.density[c] = 0.0;
             }
             self.outflow += out * vol;
         }
@@ -456,7 +473,8 @@ impl Smoke {
                         let c = i + nx * (j + ny * k);
                         out[c - k * nx * ny] = if flags[c] == FLUID {
                             let p = [i as f32 + 0.5, j as f32 + 0.5, k as f32 + 0.5];
-                            t.sample(mac.trace_back(p, scale)) * decay
+                            let v0 = mac.at_centre(i, j, k);
+                            t.sample(mac.trace_back_from(p, v0, scale)) * decay
                         } else {
                             0.0
                         };
@@ -476,7 +494,7 @@ impl Smoke {
             (&mut self.v_tmp, &self.free_v, mac.v),
             (&mut self.w_tmp, &self.free_w, mac.w),
         ];
-        for (out, free, field) in jobs {
+        for (axis, (out, free, field)) in jobs.into_iter().enumerate() {
             let [fx, fy, _] = field.dims;
             let off = field.offset;
             out.par_chunks_mut(fx * fy).enumerate().for_each(|(k, o)| {
@@ -484,8 +502,10 @@ impl Smoke {
                     for i in 0..fx {
                         let c = i + fx * j;
                         o[c] = if free[c + k * fx * fy] {
+                            // A free face is an inner one: at_face applies.
                             let p = [i as f32 + off[0], j as f32 + off[1], k as f32 + off[2]];
-                            field.sample(mac.trace_back(p, scale))
+                            let v0 = mac.at_face(axis, i, j, k);
+                            field.sample(mac.trace_back_from(p, v0, scale))
                         } else {
                             0.0
                         };
