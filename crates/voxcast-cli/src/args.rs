@@ -430,6 +430,11 @@ pub struct BenchArgs {
     /// spp against a --reference-spp render of that integrator.
     #[arg(long, value_name = "DB")]
     pub target_psnr: Option<f64>,
+    /// With --target-psnr: also compare at equal time — for each method the
+    /// highest PSNR among the settings it tried that rendered within
+    /// SECONDS (default: the time uniform takes to reach the target).
+    #[arg(long, value_name = "SECONDS", requires = "target_psnr")]
+    pub time_budget: Option<f64>,
     /// Samples per pixel of the reference of single-scatter and path.
     #[arg(long, value_name = "N", default_value_t = 1024)]
     pub reference_spp: u32,
