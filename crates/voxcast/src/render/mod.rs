@@ -62,8 +62,9 @@ pub enum Method {
     Stratified,
     /// S1 eqs. 5–6: ⌈L/step⌉ uniformly random positions on the whole ray.
     Mc,
-    /// S1 eq. 7: positions drawn from a pdf following the TF opacity of the
-    /// blocks the ray crosses, weighted by 1/(n·p(x)).
+    /// S1 eq. 7: stratified positions from a pdf following the TF opacity of
+    /// the blocks the ray crosses and the light that can reach them,
+    /// weighted by 1/(n·p(x)) (a step that varies from block to block).
     Importance,
     /// Optical model 4: single scattering of the lights with shadows, in a
     /// physically based medium (`[render.medium]`, `[[render.lights]]`).
