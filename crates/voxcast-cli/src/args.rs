@@ -365,8 +365,8 @@ pub struct RenderArgs {
     /// threshold (Zeng 2018: the step follows the value's range); the
     /// Monte-Carlo marchers of S1 (use with --spp N): jitter (one random
     /// offset per ray), stratified (one random position per step), mc
-    /// (uniformly random positions, S1 eq. 5–6), importance (positions drawn
-    /// where the transfer function is opaque, S1 eq. 7); the physically based
+    /// (uniformly random positions, S1 eq. 5–6), importance (S1 eq. 7: a
+    /// step that grows in faint and shadowed blocks, from one random offset); the physically based
     /// integrators single-scatter (optical model 4: lights with shadows) and
     /// path (model 5: volumetric path tracing), which ignore the transfer
     /// function and use the medium options below; lod (S3: octree, empty
@@ -430,6 +430,11 @@ pub struct BenchArgs {
     /// spp against a --reference-spp render of that integrator.
     #[arg(long, value_name = "DB")]
     pub target_psnr: Option<f64>,
+    /// With --target-psnr: also compare at equal time — for each method the
+    /// highest PSNR among the settings it tried that rendered within
+    /// SECONDS (default: the time uniform takes to reach the target).
+    #[arg(long, value_name = "SECONDS", requires = "target_psnr")]
+    pub time_budget: Option<f64>,
     /// Samples per pixel of the reference of single-scatter and path.
     #[arg(long, value_name = "N", default_value_t = 1024)]
     pub reference_spp: u32,

@@ -229,6 +229,7 @@ fn time_to_quality(
         target_psnr: target,
         repeat: a.repeat,
         reference_spp: a.reference_spp,
+        time_budget: a.time_budget,
     };
     let bar = ProgressBar::new_spinner();
     if !std::io::stderr().is_terminal() || a.quiet {

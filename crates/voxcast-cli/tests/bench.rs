@@ -350,3 +350,75 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
     let names: Vec<_> = std::fs::read_dir(d).unwrap().collect();
     assert!(names.is_empty(), "{names:?}");
 }
+
+/// `--target-psnr`: time to quality, and the equal-time table — by default
+/// within uniform's time, or within `--time-budget`.
+#[test]
+fn time_to_quality_compares_at_equal_quality_and_equal_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let args = |extra: &[&'static str]| {
+        let mut a = vec![
+            "builtin:sphere",
+            "--size",
+            "32x32",
+            "--methods",
+            "uniform,jitter",
+            "--target-psnr",
+            "30",
+            "--repeat",
+            "1",
+            "-q",
+            "--json",
+            "t.json",
+        ];
+        a.extend_from_slice(extra);
+        a
+    };
+    // Default budget: uniform's time to quality.
+    let o = bench(&args(&[]), dir.path(), &cache);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("| method | setting | PSNR (dB) |"), "{out}");
+    assert!(out.contains("Equal time:"), "{out}");
+    let j = read_json(&dir.path().join("t.json"));
+    let results = j["results"].as_array().unwrap();
+    assert_eq!(results.len(), 2, "{j}");
+    let uniform = &results[0];
+    assert_eq!(uniform["method"], "uniform");
+    let best_s = uniform["best"]["seconds"].as_f64().unwrap();
+    assert!(uniform["best"]["psnr_db"].as_f64().unwrap() >= 30.0, "{j}");
+    assert_eq!(j["time_budget_s"].as_f64().unwrap(), best_s);
+    // Uniform within its own time: its timed setting.
+    assert_eq!(uniform["equal_time"]["step"], uniform["best"]["step"]);
+    for r in results {
+        if let Some(e) = r["equal_time"].as_object() {
+            assert!(e["seconds"].as_f64().unwrap() <= best_s, "{j}");
+        }
+    }
+    // A generous budget: every method's best PSNR among what it tried.
+    let o = bench(&args(&["--time-budget", "1000"]), dir.path(), &cache);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = read_json(&dir.path().join("t.json"));
+    assert_eq!(j["time_budget_s"].as_f64().unwrap(), 1000.0);
+    for r in j["results"].as_array().unwrap() {
+        let top = r["points"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["psnr_db"].as_f64().unwrap())
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert_eq!(r["equal_time"]["psnr_db"].as_f64().unwrap(), top, "{j}");
+    }
+    // Bad budgets are refused, naming the option.
+    let o = bench(&args(&["--time-budget", "0"]), dir.path(), &cache);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("time budget"), "{}", stderr(&o));
+    let o = bench(
+        &["builtin:sphere", "--time-budget", "1", "-q"],
+        dir.path(),
+        &cache,
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--target-psnr"), "{}", stderr(&o));
+}

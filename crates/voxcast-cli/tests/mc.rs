@@ -30,6 +30,8 @@ fn path_traced_absorbing_vol_slab_matches_beer_lambert() {
             "16x16",
             "-o",
             "out.exr",
+            "--stats-json",
+            "stats.json",
             "-q",
         ])
         .current_dir(dir.path())
@@ -51,6 +53,15 @@ fn path_traced_absorbing_vol_slab_matches_beer_lambert() {
     let mean = sum / 16.0;
     let se = (exact * (1.0 - exact) / (16.0 * 256.0)).sqrt();
     assert!((mean - exact).abs() < 3.0 * se, "{mean} vs {exact} ± {se}");
+    // Camera rays (256 per pixel) are counted, and those that met the
+    // medium's box: some, not all (the corner pixel sees only the sky).
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("stats.json")).unwrap())
+            .unwrap();
+    let rays = stats["rays"].as_u64().unwrap();
+    let hit = stats["rays_hit"].as_u64().unwrap();
+    assert_eq!(rays, 16 * 16 * 256, "{stats}");
+    assert!(hit >= 16 * 256 && hit < rays, "{stats}");
 }
 
 #[test]

@@ -318,6 +318,18 @@ impl TransferFunction {
         a[1] + (b[1] - a[1]) * f
     }
 
+    /// The smallest opacity over normalised values in `[a, b]` (a lower
+    /// bound of a block's extinction, for the `importance` pdf).
+    pub fn min_opacity_in(&self, a: f32, b: f32) -> f32 {
+        let mut m = self.opacity_at(a).min(self.opacity_at(b));
+        for q in &self.opacity {
+            if q[0] > a && q[0] < b {
+                m = m.min(q[1]);
+            }
+        }
+        m
+    }
+
     /// The largest opacity over normalised values in `[a, b]` (for
     /// empty-space skipping: a block is empty when this is zero).
     pub fn max_opacity_in(&self, a: f32, b: f32) -> f32 {

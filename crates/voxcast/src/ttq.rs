@@ -11,6 +11,10 @@
 //! The reference is the bench's (uniform, step 1/16, no early termination,
 //! no skipping) for ray casting, and `reference_spp` samples per pixel of
 //! the same integrator, with another seed, for the physically based ones.
+//!
+//! Equal time is the other half of the comparison: of the settings each
+//! method tried, the one with the highest PSNR that rendered within a time
+//! budget — by default the time `uniform` takes to reach the target.
 
 use crate::bench::{median, reference_params};
 use crate::error::{Error, Result};
@@ -29,6 +33,9 @@ pub struct TtqConfig {
     pub repeat: usize,
     /// Samples per pixel of the physically based references.
     pub reference_spp: u32,
+    /// The time of the equal-time comparison (seconds); `None`: the time
+    /// `uniform` takes to reach the target.
+    pub time_budget: Option<f64>,
 }
 
 /// One setting tried.
@@ -50,6 +57,9 @@ pub struct TtqResult {
     pub best: Option<TtqPoint>,
     /// Speed-up over `uniform` at the target (uniform time / this time).
     pub speedup: Option<f64>,
+    /// Equal time: of the settings tried, the one with the highest PSNR
+    /// that rendered within the time budget.
+    pub equal_time: Option<TtqPoint>,
 }
 
 /// The report.
@@ -59,6 +69,8 @@ pub struct TtqReport {
     pub width: u32,
     pub height: u32,
     pub reference_seconds: f64,
+    /// The equal-time budget (seconds), when there is one.
+    pub time_budget_s: Option<f64>,
     pub results: Vec<TtqResult>,
 }
 
@@ -73,6 +85,13 @@ pub fn run(
     config: &TtqConfig,
     progress: &dyn Fn(&str),
 ) -> Result<TtqReport> {
+    if let Some(t) = config.time_budget {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::invalid(format!(
+                "time budget {t}: must be a positive number of seconds"
+            )));
+        }
+    }
     if !(config.target_psnr.is_finite() && config.target_psnr > 0.0) {
         return Err(Error::invalid(format!(
             "target PSNR {}: must be a positive number of dB",
@@ -168,23 +187,39 @@ pub fn run(
             points,
             best,
             speedup: None,
+            equal_time: None,
         });
     }
     let uniform = results
         .iter()
         .find(|r| r.method == "uniform")
         .and_then(|r| r.best.as_ref().map(|b| b.seconds));
+    let budget = config.time_budget.or(uniform);
     for r in &mut results {
         r.speedup = match (uniform, &r.best) {
             (Some(u), Some(b)) if b.seconds > 0.0 => Some(u / b.seconds),
             _ => None,
         };
+        // The timed setting counts with its median, the others with their
+        // one render.
+        let best = r.best.clone();
+        r.equal_time = budget.and_then(|t| {
+            r.points
+                .iter()
+                .map(|p| match &best {
+                    Some(b) if b.step == p.step && b.spp == p.spp => b.clone(),
+                    _ => p.clone(),
+                })
+                .filter(|p| p.seconds <= t)
+                .max_by(|a, b| a.psnr_db.total_cmp(&b.psnr_db))
+        });
     }
     Ok(TtqReport {
         target_psnr_db: config.target_psnr,
         width: base.width,
         height: base.height,
         reference_seconds: ref_stats.seconds,
+        time_budget_s: budget,
         results,
     })
 }
@@ -222,6 +257,20 @@ pub fn markdown(r: &TtqReport) -> String {
                     m.method, top
                 )
             }
+        }
+    }
+    if let Some(t) = r.time_budget_s {
+        s += &format!(
+            "\nEqual time: the best PSNR each method reached within {t:.4} s (the settings above, each rendered once):\n\n| method | setting | time (s) | PSNR (dB) |\n|---|---|---:|---:|\n"
+        );
+        for m in &r.results {
+            s += &match &m.equal_time {
+                Some(p) => format!(
+                    "| {} | step {} spp {} | {:.4} | {:.2} |\n",
+                    m.method, p.step, p.spp, p.seconds, p.psnr_db
+                ),
+                None => format!("| {} | none within the budget | — | — |\n", m.method),
+            };
         }
     }
     s

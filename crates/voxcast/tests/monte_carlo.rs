@@ -196,3 +196,81 @@ fn physical_scene_round_trips_through_toml() {
     let e = Scene::load(&f).unwrap_err().to_string();
     assert!(e.contains("look_at"), "{e}");
 }
+
+/// Single scattering against its closed form: a homogeneous unit cube
+/// (σ_t = 1, albedo 0.8, isotropic phase) seen orthographically face on,
+/// lit by a directional light of irradiance E along the line of sight.
+/// Along a camera ray through depth `t ∈ [0, 1]` the single-scatter
+/// radiance is `∫ σ_s·E/(4π)·T_light(t)·T_cam(t) dt` with `T_cam = e^{−t}`:
+/// * light behind the cube (shining at the camera): `T_light = e^{−(1−t)}`,
+///   so `L = a·E·σ·e^{−σ}/(4π)`;
+/// * light behind the camera: `T_light = e^{−t}`, so
+///   `L = a·E·(1 − e^{−2σ})/(8π)`.
+///
+/// The mean of the pixels that look through the cube's face must be within
+/// 3 standard errors of each.
+#[test]
+fn single_scatter_matches_the_closed_form_for_a_homogeneous_cube() {
+    use voxcast::camera::{Camera, Projection};
+    use voxcast::render::light::Light;
+    use voxcast::render::phase::PhaseFunction;
+    let vol = Volume::from_fn([5, 5, 5], glam::Vec3::splat(0.25), |_, _, _| 1.0).unwrap();
+    let (lo, hi) = vol.world_bounds();
+    assert_eq!((lo, hi), (glam::Vec3::ZERO, glam::Vec3::ONE));
+    let r = Renderer::new(&vol, [0.0, 1.0]).unwrap();
+    let tf = scene().1;
+    let camera = CameraParams {
+        projection: Projection::Orthographic,
+        ..Default::default()
+    };
+    let (w, h) = (24u32, 24u32);
+    let view = Camera::fit(&camera, lo, hi, w, h).ray(w / 2, h / 2).1;
+    // The camera looks at a face of the cube.
+    let axis = view.abs().max_element();
+    assert!(axis > 0.999, "view {view}");
+    let (sigma, albedo, e) = (1.0f64, 0.8f64, 2.0f32);
+    let four_pi = 4.0 * std::f64::consts::PI;
+    for (towards_light, exact) in [
+        (view, albedo * e as f64 * sigma * (-sigma).exp() / four_pi),
+        (
+            -view,
+            albedo * e as f64 * (1.0 - (-2.0 * sigma).exp()) / (2.0 * four_pi),
+        ),
+    ] {
+        let mut p = params(Method::SingleScatter, 256, 3);
+        p.width = w;
+        p.height = h;
+        p.lights = vec![Light::Directional {
+            direction: towards_light.to_array(),
+            irradiance: [e; 3],
+        }];
+        p.medium.albedo = [albedo as f32; 3];
+        p.medium.scale = sigma as f32;
+        p.medium.phase = PhaseFunction::Isotropic;
+        let (img, _) = r.render(&tf, &camera, &p, &no_progress).unwrap();
+        // Pixels whose rays cross the cube face on (away from its edges).
+        let cam = Camera::fit(&camera, lo, hi, w, h);
+        let mut v = Vec::new();
+        for y in 0..h {
+            for x in 0..w {
+                let (o, d) = cam.ray(x, y);
+                // Where the ray meets the plane through the cube's centre
+                // across the view: inside the face's middle 80 %?
+                let t = (glam::Vec3::splat(0.5) - o).dot(view) / d.dot(view);
+                let q = o + d * t - glam::Vec3::splat(0.5);
+                if (q - view * q.dot(view)).abs().max_element() < 0.4 {
+                    v.push(img.get(x, y)[1] as f64);
+                }
+            }
+        }
+        assert!(v.len() >= 100, "{} pixels through the cube", v.len());
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let se = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0) / n).sqrt();
+        assert!(se > 0.0 && se < 0.05 * exact, "se {se} vs {exact}");
+        assert!(
+            (mean - exact).abs() < 3.0 * se,
+            "light towards {towards_light}: {mean} ± {se} vs {exact}"
+        );
+    }
+}

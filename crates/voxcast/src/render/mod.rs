@@ -62,8 +62,9 @@ pub enum Method {
     Stratified,
     /// S1 eqs. 5–6: ⌈L/step⌉ uniformly random positions on the whole ray.
     Mc,
-    /// S1 eq. 7: positions drawn from a pdf following the TF opacity of the
-    /// blocks the ray crosses, weighted by 1/(n·p(x)).
+    /// S1 eq. 7: stratified positions from a pdf following the TF opacity of
+    /// the blocks the ray crosses and the light that can reach them,
+    /// weighted by 1/(n·p(x)) (a step that varies from block to block).
     Importance,
     /// Optical model 4: single scattering of the lights with shadows, in a
     /// physically based medium (`[render.medium]`, `[[render.lights]]`).
@@ -510,8 +511,8 @@ impl<'v> Renderer<'v> {
             stats.seconds = start.elapsed().as_secs_f64();
             return Ok((image, stats));
         }
-        let block_sigma = if params.method == Method::Importance {
-            stochastic_block_sigma(&derived.blocks, tf)
+        let pdf = if params.method == Method::Importance {
+            stochastic::pdf_blocks(&derived.blocks.range, tf, 1.0 / unit)
         } else {
             Vec::new()
         };
@@ -527,7 +528,7 @@ impl<'v> Renderer<'v> {
             })
         });
         let job = Job {
-            block_sigma: &block_sigma,
+            pdf: &pdf,
             volume,
             lut: Lut::new(tf, params.step),
             cam,
@@ -550,26 +551,8 @@ impl<'v> Renderer<'v> {
     }
 }
 
-/// The `importance` pdf per block: the largest extinction (per unit length)
-/// that `tf` gives any value in the block (0 in empty blocks).
-fn stochastic_block_sigma(blocks: &BlockGrid, tf: &TransferFunction) -> Vec<f32> {
-    blocks
-        .range
-        .iter()
-        .map(|&[lo, hi]| {
-            if hi < 0.0 {
-                return 0.0;
-            }
-            let a = tf
-                .max_opacity_in(lo.max(0.0), hi.min(1.0))
-                .clamp(0.0, 0.9999);
-            -(1.0 - a).ln()
-        })
-        .collect()
-}
-
 struct Job<'a> {
-    block_sigma: &'a [f32],
+    pdf: &'a [stochastic::PdfBlock],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
@@ -619,6 +602,18 @@ impl Job<'_> {
             .iter()
             .map(|&r| self.lut.alphas(r))
             .collect();
+        // `importance`: the spacing and step opacities of its pdf's levels.
+        let (importance_steps, importance_alphas): (Vec<f32>, Vec<_>) =
+            if p.method == Method::Importance {
+                (0..=stochastic::MAX_LEVEL)
+                    .map(|j| {
+                        let r = p.step * (1u32 << j) as f32;
+                        (r * self.unit, self.lut.alphas(r))
+                    })
+                    .unzip()
+            } else {
+                (Vec::new(), Vec::new())
+            };
         let lod_ray = self
             .tree
             .map(|t| lod::LodRay::new(t, &self.empty, &self.lut, &p.lod, p.step, self.unit));
@@ -653,7 +648,9 @@ impl Job<'_> {
             surface: self.surface,
             seed: p.seed,
             pass: 0,
-            block_sigma: self.block_sigma,
+            pdf: self.pdf,
+            importance_steps: &importance_steps,
+            importance_alphas: &importance_alphas,
             lod: lod_ray.as_ref(),
         };
         // Deterministic methods give the same image every pass.

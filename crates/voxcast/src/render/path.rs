@@ -304,6 +304,9 @@ impl<T: Voxel> PhaseVisitor for WithGrid<'_, '_, T> {
                     let (o, d) = job
                         .cam
                         .ray_at(x as f32 + rng.uniform(), y as f32 + rng.uniform());
+                    // Camera rays that meet the medium's box (as the ray
+                    // caster counts its rays that meet the volume's).
+                    stats.rays_hit += m.enter(o, d, f32::INFINITY).is_some() as u64;
                     sum += integ.li(&m, o, d, &mut rng, work);
                 }
                 stats.rays += p.spp as u64;

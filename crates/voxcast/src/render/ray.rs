@@ -57,8 +57,12 @@ pub(super) struct RayCtx<'a, T> {
     /// Seed and pass of the stochastic marchers (Monte-Carlo passes).
     pub seed: u64,
     pub pass: u32,
-    /// `importance`: largest extinction per block under the TF (its pdf).
-    pub block_sigma: &'a [f32],
+    /// `importance`: its pdf per block (see `stochastic.rs`), and per level
+    /// `j` the spacing `step·2^j` (world units) and the step opacity of
+    /// every table entry.
+    pub pdf: &'a [super::stochastic::PdfBlock],
+    pub importance_steps: &'a [f32],
+    pub importance_alphas: &'a [Box<[f32; LUT_SIZE]>],
     /// S3 octree + LOD: the octree and the spacing tables (`lod` only).
     pub lod: Option<&'a super::lod::LodRay<'a>>,
 }

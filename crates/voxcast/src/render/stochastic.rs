@@ -11,15 +11,23 @@
 //!   t_in + (k+1)·s)`; `Δ = s`.
 //! * `mc`: `n = ⌈L/s⌉` independent uniform positions on the ray's whole
 //!   `[t_in, t_out]` (S1 eqs. 5–6); `Δ = L/n`.
-//! * `importance`: `n` positions from a pdf proportional, block by block, to
-//!   the largest extinction the transfer function gives the block's values
-//!   (zero in empty blocks, which are thus skipped); `Δᵢ = W/(n·wᵢ)` with
-//!   `W = Σ w_b·len_b` (S1 eq. 7).
+//! * `importance`: positions from a pdf that is constant on each block the
+//!   ray crosses, `∝ σ_max^γ · T_max^β` (γ = 0.35, β = 1): `σ_max` the
+//!   largest extinction the transfer function gives the block's values (0
+//!   in transparent blocks, which get no samples), `T_max = exp(−∫σ_min)`
+//!   the most light that can reach the block (from the smallest extinction
+//!   of the blocks before it), rounded to powers of two. The positions are
+//!   *stratified* in CDF space — one random offset, equally spaced CDF
+//!   values mapped through the inverse CDF — which makes `importance` a
+//!   uniform march whose step `step·2^j` varies from block to block;
+//!   `Δᵢ = 1/(n·p(tᵢ)) = step·2^j` (S1 eq. 7). The pdf depends only on the
+//!   block grid along the ray, not on what the samples found, so the
+//!   estimate stays unbiased.
 //!
-//! `mc` and `importance` need their positions in order along the ray for
-//! front-to-back compositing; they are drawn already sorted, as descending
-//! order statistics `U₍ₙ₎ = V^{1/n}`, `U₍ₖ₎ = U₍ₖ₊₁₎·V^{1/k}` (Devroye 1986,
-//! V.3), so there is no buffer and no sort.
+//! `mc` needs its positions in order along the ray for front-to-back
+//! compositing; they are drawn already sorted, as descending order
+//! statistics `U₍ₙ₎ = V^{1/n}`, `U₍ₖ₎ = U₍ₖ₊₁₎·V^{1/k}` (Devroye 1986, V.3),
+//! so there is no buffer and no sort.
 
 use super::march::BlockWalker;
 use super::optics::Optics;
@@ -92,11 +100,16 @@ pub(super) fn march<T: Voxel, O: Optics>(
     acc: &mut Acc<'_>,
     n: &mut Counters,
 ) -> bool {
-    let rng = Rng::for_pixel(ctx.seed, pixel.0, pixel.1, ctx.pass);
+    let rng = || Rng::for_pixel(ctx.seed, pixel.0, pixel.1, ctx.pass);
     match ctx.method {
-        Method::Stratified => stratified::<T, O>(ctx, o, d, view, t_in, t_out, rng, acc, n),
-        Method::Mc => uniform_mc::<T, O>(ctx, o, d, view, t_in, t_out, rng, acc, n),
-        _ => importance::<T, O>(ctx, o, d, view, t_in, t_out, rng, acc, n),
+        Method::Stratified => stratified::<T, O>(ctx, o, d, view, t_in, t_out, rng(), acc, n),
+        Method::Mc => uniform_mc::<T, O>(ctx, o, d, view, t_in, t_out, rng(), acc, n),
+        _ => {
+            // One offset per ray; the passes follow the pixel's rotated
+            // golden-ratio sequence, as `jitter`'s do.
+            let xi = super::rng::pixel_sequence(ctx.seed, pixel.0, pixel.1, ctx.pass);
+            importance::<T, O>(ctx, o, d, view, t_in, t_out, xi, acc, n)
+        }
     }
 }
 
@@ -210,53 +223,253 @@ fn importance<T: Voxel, O: Optics>(
     view: Vec3,
     t_in: f32,
     t_out: f32,
-    rng: Rng,
+    xi: f32,
     acc: &mut Acc<'_>,
     n: &mut Counters,
 ) -> bool {
-    let walker = || BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts);
-    // First walk: the pdf's normalisation W = Σ w_b·len_b and the length
-    // that is not empty (which sets the sample count, as uniform's would).
-    let (mut total, mut busy) = (0.0f32, 0.0f32);
-    for (ta, tb, b) in walker() {
-        let w = ctx.block_sigma[b];
-        total += w * (tb - ta);
-        busy += if w > 0.0 { tb - ta } else { 0.0 };
-    }
-    if total <= 0.0 {
-        return false;
-    }
-    let count = (busy / ctx.step).ceil().max(1.0) as u32;
-    // Second walk: inverse CDF of the sorted uniforms, stretch by stretch.
-    let mut cdf = 0.0f32;
-    let mut stretches = walker().filter(|&(_, _, b)| ctx.block_sigma[b] > 0.0);
-    let Some(mut cur) = stretches.next() else {
-        return false;
-    };
-    let mut cur_mass = ctx.block_sigma[cur.2] * (cur.1 - cur.0);
-    for u in SortedUniforms::new(rng, count) {
-        let target = u * total;
-        while cdf + cur_mass <= target {
-            cdf += cur_mass;
-            match stretches.next() {
-                Some(s) => {
-                    cur = s;
-                    cur_mass = ctx.block_sigma[cur.2] * (cur.1 - cur.0);
+    // BETA·log₂ e × the optical depth of the extinction's lower bound so
+    // far: the transmittance reaching a block is at most exp(−depth).
+    let beta = BETA * std::f32::consts::LOG2_E;
+    let mut tau = 0.0f32;
+    let stretches =
+        BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts).map(|(ta, tb, b)| {
+            let blk = ctx.pdf[b];
+            let j = if blk.level < 0.0 {
+                NO_MASS
+            } else {
+                (blk.level + beta * tau).min(MAX_LEVEL as f32) as u8
+            };
+            tau += blk.sigma_min * (tb - ta);
+            (ta, tb, j)
+        });
+    systematic(stretches, ctx.importance_steps, xi, |t, j| {
+        n.samples += 1;
+        let Some((i, rgb)) = evaluate(ctx, o + d * t, view, n) else {
+            return false;
+        };
+        // S1 eq. 7: the sample stands for Δ = 1/(n·p(t)) = step·2^j.
+        let alpha = ctx.importance_alphas[j][i];
+        alpha > 0.0 && acc.add::<O>(rgb, alpha)
+    })
+}
+
+/// Level of a block the `importance` pdf gives no mass (transparent).
+pub(super) const NO_MASS: u8 = u8::MAX;
+/// Coarsest level of the `importance` pdf: spacing `step·2^MAX_LEVEL`.
+pub(super) const MAX_LEVEL: u8 = 5;
+
+/// Exponent of the `importance` pdf's extinction term: density
+/// `∝ σ_max^GAMMA` (1 would be proportional to the extinction bound; on the
+/// teapot and the lung CT 0.35 gave the best time to quality, see
+/// `docs/README-mc.md`).
+pub(super) const GAMMA: f32 = 0.35;
+/// Exponent of its transmittance term: density `∝ T_max^BETA`, with
+/// `T_max = exp(−∫σ_min)` the most light that can reach a block.
+pub(super) const BETA: f32 = 1.0;
+
+/// One block of the `importance` pdf.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PdfBlock {
+    /// `γ·log₂(σ_top/σ_max)` (≥ 0): the block's level before attenuation;
+    /// negative where the TF makes the block transparent (no mass).
+    pub level: f32,
+    /// The smallest extinction the TF gives the block's values, per world
+    /// length: a lower bound of the extinction anywhere in the block.
+    pub sigma_min: f32,
+}
+
+/// The `importance` pdf, block by block, from the extinction range the TF
+/// gives each block's value range `[lo, hi]` (`unit_inv`: 1 / unit length).
+pub(super) fn pdf_blocks(
+    range: &[[f32; 2]],
+    tf: &crate::transfer::TransferFunction,
+    unit_inv: f32,
+) -> Vec<PdfBlock> {
+    let sigma = |a: f32| -(1.0 - a.clamp(0.0, 0.9999)).ln();
+    let max: Vec<f32> = range
+        .iter()
+        .map(|&[lo, hi]| {
+            if hi < 0.0 {
+                0.0
+            } else {
+                sigma(tf.max_opacity_in(lo.max(0.0), hi.min(1.0)))
+            }
+        })
+        .collect();
+    let top = max.iter().fold(0.0f32, |a, &b| a.max(b));
+    range
+        .iter()
+        .zip(&max)
+        .map(|(&[lo, hi], &m)| {
+            if m > 0.0 && top > 0.0 {
+                PdfBlock {
+                    level: (top / m).log2() * GAMMA,
+                    sigma_min: sigma(tf.min_opacity_in(lo.max(0.0), hi.min(1.0))) * unit_inv,
                 }
-                // Rounding at the very end: the sample is in the last stretch.
-                None => {
-                    cdf -= cur_mass;
-                    break;
+            } else {
+                PdfBlock {
+                    level: -1.0,
+                    sigma_min: 0.0,
                 }
             }
+        })
+        .collect()
+}
+
+/// Systematic (stratified) sampling of a piecewise-constant pdf along a
+/// ray: `stretches` are consecutive `(t_a, t_b, level)` pieces, the density
+/// on a piece is `1/steps[level]` samples per unit length (none on a
+/// [`NO_MASS`] piece), and the samples sit at the CDF values `k + ξ`,
+/// `k = 0, 1, …` — one random offset `ξ ∈ [0, 1)` per ray, equally spaced
+/// points in CDF space mapped through the inverse CDF. On a piece that is
+/// a uniform march of spacing `steps[level]`, carried over from piece to
+/// piece, so a sample costs O(1) (no search, no `powf`). A sample at level
+/// `j` stands for `Δ = 1/(n·p) = steps[j]`; since every CDF value is hit
+/// with uniform probability, `E[Σ f(tₖ)·Δₖ] = ∫ f dt` for any `f` that is 0
+/// where the pdf is (unbiased, S1 eq. 7). `visit(t, level)` is called for
+/// each sample in order; the march stops when it returns true.
+#[inline(always)]
+pub(super) fn systematic(
+    stretches: impl Iterator<Item = (f32, f32, u8)>,
+    steps: &[f32],
+    xi: f32,
+    mut visit: impl FnMut(f32, usize) -> bool,
+) -> bool {
+    // CDF distance (in samples) from the current piece's start to the next sample.
+    let mut ahead = xi;
+    for (ta, tb, j) in stretches {
+        if j == NO_MASS {
+            continue;
         }
-        let w_b = ctx.block_sigma[cur.2];
-        let t = (cur.0 + (target - cdf) / w_b).clamp(cur.0, cur.1);
-        // S1 eq. 7: Δ = 1/(n·p(t)), p(t) = w_b / W.
-        let len = total / (count as f32 * w_b);
-        if sample::<T, O>(ctx, o + d * t, view, len, acc, n) {
-            return true;
+        let j = j as usize;
+        let s = steps[j];
+        let mut t = ta + ahead * s;
+        while t < tb {
+            if visit(t, j) {
+                return true;
+            }
+            t += s;
         }
+        ahead = (t - tb) / s;
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Pieces of a ray with pdf levels, one of them without mass.
+    const PIECES: [(f32, f32, u8); 5] = [
+        (0.0, 3.0, 0),
+        (3.0, 5.0, NO_MASS),
+        (5.0, 9.0, 2),
+        (9.0, 9.5, 1),
+        (9.5, 14.0, 0),
+    ];
+    const STEPS: [f32; 3] = [0.3, 0.6, 1.2];
+
+    /// `1 + sin t` where the pdf has mass, 0 elsewhere.
+    fn f(t: f32) -> f64 {
+        if (3.0..5.0).contains(&t) {
+            0.0
+        } else {
+            1.0 + (t as f64).sin()
+        }
+    }
+
+    /// Mean and standard error over `n` random offsets of `Σ f(tₖ)·w(level)`.
+    fn estimate(n: usize, weight: impl Fn(usize) -> f64) -> (f64, f64) {
+        let mut rng = Rng::new(11, 4);
+        let (mut s, mut s2) = (0.0f64, 0.0f64);
+        for _ in 0..n {
+            let mut sum = 0.0f64;
+            systematic(PIECES.into_iter(), &STEPS, rng.uniform(), |t, j| {
+                sum += f(t) * weight(j);
+                false
+            });
+            s += sum;
+            s2 += sum * sum;
+        }
+        let mean = s / n as f64;
+        (mean, ((s2 / n as f64 - mean * mean) / n as f64).sqrt())
+    }
+
+    #[test]
+    fn systematic_sampling_is_unbiased() {
+        let antiderivative = |t: f64| t - t.cos();
+        let exact =
+            antiderivative(3.0) - antiderivative(0.0) + antiderivative(14.0) - antiderivative(5.0);
+        // Weights 1/(n·p) = the level's spacing: the expectation is the integral.
+        let (mean, se) = estimate(20_000, |j| STEPS[j] as f64);
+        assert!(se > 0.0 && se < 0.01, "se {se}");
+        assert!(
+            (mean - exact).abs() < 3.0 * se + 1e-5 * exact,
+            "{mean} ± {se} vs {exact}"
+        );
+        // The test can tell: one weight for all levels (ignoring the pdf) is off.
+        let (wrong, _) = estimate(20_000, |_| STEPS[0] as f64);
+        assert!((wrong - exact).abs() > 100.0 * se, "{wrong} vs {exact}");
+    }
+
+    #[test]
+    fn systematic_samples_follow_the_pdf() {
+        let mut ts: Vec<(f32, usize)> = Vec::new();
+        systematic(PIECES.into_iter(), &STEPS, 0.25, |t, j| {
+            ts.push((t, j));
+            false
+        });
+        // In order, none where the pdf is 0, spaced by the level's step
+        // inside a piece, and the first at ξ·step.
+        assert_eq!(ts[0], (0.25 * 0.3, 0));
+        assert!(ts.windows(2).all(|w| w[0].0 < w[1].0));
+        assert!(ts.iter().all(|&(t, _)| !(3.0..5.0).contains(&t)));
+        for w in ts.windows(2).filter(|w| w[0].1 == w[1].1) {
+            let gap = w[1].0 - w[0].0;
+            let piece = PIECES
+                .iter()
+                .find(|p| p.0 <= w[0].0 && w[0].0 < p.1)
+                .unwrap();
+            if piece.0 <= w[1].0 && w[1].0 < piece.1 {
+                assert!((gap - STEPS[w[0].1]).abs() < 1e-5, "{w:?}");
+            }
+        }
+        // The expected count is the CDF's total mass: 3/0.3 + 4/1.2 + 0.5/0.6 + 4.5/0.3.
+        let mass = 10.0 + 4.0 / 1.2 + 0.5 / 0.6 + 15.0;
+        assert!(
+            (ts.len() as f32 - mass).abs() <= 1.0,
+            "{} vs {mass}",
+            ts.len()
+        );
+        // Stopping early stops.
+        let mut count = 0;
+        assert!(systematic(PIECES.into_iter(), &STEPS, 0.5, |_, _| {
+            count += 1;
+            count == 3
+        }));
+        assert_eq!(count, 3);
+    }
+
+    #[test]
+    fn pdf_levels_follow_the_extinction() {
+        let tf = crate::transfer::TransferFunction {
+            color: vec![[0.0, 1.0, 1.0, 1.0]],
+            opacity: vec![[0.0, 0.0], [1.0, 0.9]],
+            window: None,
+        };
+        // Dense, transparent, faint (σ_max 1/16 of the top), attenuating.
+        let blocks = pdf_blocks(
+            &[[0.5, 1.0], [-1.0, -1.0], [0.0, 0.0], [0.0, 0.14]],
+            &tf,
+            1.0,
+        );
+        assert_eq!(blocks[0].level, 0.0);
+        assert!(blocks[0].sigma_min > 0.5, "{:?}", blocks[0]);
+        assert!(blocks[1].level < 0.0 && blocks[2].level < 0.0);
+        assert!(
+            blocks[3].level > 0.0 && blocks[3].sigma_min == 0.0,
+            "{:?}",
+            blocks[3]
+        );
+    }
 }
