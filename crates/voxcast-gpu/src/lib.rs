@@ -446,7 +446,17 @@ impl GpuRenderer {
         window: [f32; 2],
     ) -> Result<GpuRenderer, GpuError> {
         // The CPU renderer's window checks and widening.
-        let window = voxcast::render::Renderer::new(volume, window)?.window();
+        let mut window = window;
+        if window[0].is_finite() && window[0] == window[1] {
+            window = [window[0] - 0.5, window[0] + 0.5];
+        }
+        if !(window[0].is_finite() && window[1].is_finite() && window[0] < window[1]) {
+            return Err(voxcast::Error::invalid(format!(
+                "window [{}, {}] must have lo < hi",
+                window[0], window[1]
+            ))
+            .into());
+        }
         let dims = volume.dims();
         let limit = ctx.limits().max_texture_dimension_3d as usize;
         if dims.iter().any(|&d| d > limit) {
@@ -987,4 +997,20 @@ fn read_back(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<Vec<u8>, GpuEr
         .to_vec();
     buf.unmap();
     Ok(bytes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::f16_bits;
+
+    #[test]
+    fn half_bits_of_integers() {
+        assert_eq!(f16_bits(0.0), 0);
+        assert_eq!(f16_bits(1.0), 0x3C00);
+        assert_eq!(f16_bits(3.0), 0x4200);
+        assert_eq!(f16_bits(2047.0), 0x67FF);
+        assert_eq!(f16_bits(2048.0), 0x6800);
+        assert_eq!(f16_bits(-1024.0), 0xE400);
+        assert_eq!(f16_bits(-1.0), 0xBC00);
+    }
 }
