@@ -250,14 +250,15 @@ fn bench(a: BenchArgs) -> Result<()> {
         }
         return time_to_quality(&a, &scene, &prepared, methods, target);
     }
-    // `auto` judges the GPU by the first method that it cannot render.
+    // `auto` picks the CPU when any method has no GPU version; under `gpu`
+    // such a method is reported as failed in the table (the baseline
+    // `uniform` always renders).
     let mut device_scene = scene.clone();
-    if let Some(m) = methods
-        .iter()
-        .find(|m| !voxcast_gpu::supports(m.method))
-        .or(methods.first())
-    {
-        m.apply(&mut device_scene.render);
+    device_scene.render.method = voxcast::render::Method::Uniform;
+    if a.device == args::DeviceArg::Auto {
+        if let Some(m) = methods.iter().find(|m| !voxcast_gpu::supports(m.method)) {
+            m.apply(&mut device_scene.render);
+        }
     }
     let device = pick_device(a.device, &device_scene, quiet)?;
     let gpu = match &device {

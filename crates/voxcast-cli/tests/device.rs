@@ -144,3 +144,53 @@ fn gpu_render_matches_the_cpu_render() {
     assert!(psnr >= 40.0, "GPU vs CPU PSNR {psnr:.2} dB");
     assert!(dir.path().join("gpu.png").exists());
 }
+
+/// `bench --device gpu` times the methods on the GPU against the CPU's
+/// reference; a method the GPU lacks is reported failed by name while the
+/// others still run.
+#[test]
+fn bench_on_the_gpu_reports_the_device_and_unsupported_methods() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = voxcast(
+        &[
+            "bench",
+            "--device",
+            "gpu",
+            "--methods",
+            "uniform,adaptive+grouped,threshold",
+            "--size",
+            "32x32",
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--json",
+            "b.json",
+            "-q",
+        ],
+        dir.path(),
+        false,
+    );
+    let err = stderr(&o);
+    if err.contains("no GPU adapter") && !in_ci() {
+        eprintln!("skipping: {err}");
+        return;
+    }
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("threshold") && out.contains("not supported on the GPU back end"),
+        "{out}\n{err}"
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("b.json")).unwrap()).unwrap();
+    assert!(
+        j["run"]["device"].as_str().unwrap().starts_with("gpu: "),
+        "{j}"
+    );
+    let methods = j["methods"].as_array().unwrap();
+    for m in &methods[..2] {
+        let psnr = m["psnr_db"].as_f64().unwrap();
+        assert!(psnr > 30.0, "{m}");
+    }
+    assert!(methods[2]["error"].as_str().unwrap().contains("threshold"));
+}
