@@ -74,14 +74,25 @@ fn render(a: RenderArgs) -> Result<()> {
             bar.set_draw_target(ProgressDrawTarget::stderr());
         }
     };
-    let (image, stats) = scene.render(&prepared, &progress)?;
+    let device = pick_device(a.device, &scene, quiet)?;
+    let (image, stats) = match &device {
+        Device::Cpu => scene.render(&prepared, &progress)?,
+        Device::Gpu(ctx) => gpu_renderer(ctx, &prepared)?
+            .render(&prepared.tf, &scene.camera, &scene.render)
+            .context("rendering on the GPU")?,
+    };
     bar.finish_and_clear();
     image.write(&out)?;
     if let Some(f) = &a.float_out {
         image.write_exr(f)?;
     }
     if let Some(f) = &a.stats_json {
-        let json = serde_json::to_string_pretty(&stats)?;
+        // The core's stats plus the device that rendered.
+        let mut value = serde_json::to_value(stats)?;
+        if let serde_json::Value::Object(m) = &mut value {
+            m.insert("device".into(), device.describe().into());
+        }
+        let json = serde_json::to_string_pretty(&value)?;
         voxcast::image::atomic_write(f, |w| {
             use std::io::Write;
             writeln!(w, "{json}")
@@ -92,11 +103,12 @@ fn render(a: RenderArgs) -> Result<()> {
     }
     if !quiet {
         eprintln!(
-            "wrote {} ({}×{}) in {:.3} s: {} rays, {} samples ({:.1} M/s), {} early-terminated",
+            "wrote {} ({}×{}) in {:.3} s on {}: {} rays, {} samples ({:.1} M/s), {} early-terminated",
             out.display(),
             image.width,
             image.height,
             stats.seconds,
+            device.describe(),
             stats.rays,
             stats.samples,
             stats.samples_per_second() / 1e6,
@@ -104,6 +116,106 @@ fn render(a: RenderArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// The renderer `--device` chose.
+enum Device {
+    Cpu,
+    Gpu(std::sync::Arc<voxcast_gpu::GpuContext>),
+}
+
+impl Device {
+    fn describe(&self) -> String {
+        match self {
+            Device::Cpu => format!(
+                "cpu ({} threads)",
+                std::thread::available_parallelism().map_or(1, |n| n.get())
+            ),
+            Device::Gpu(ctx) => format!("gpu: {}", ctx.info()),
+        }
+    }
+}
+
+/// Resolves `--device` for `scene`: `gpu` must find an adapter (the error
+/// names the backends and adapters tried); `auto` takes a hardware GPU when
+/// there is one and it renders the scene's method, else the CPU, and says
+/// which.
+fn pick_device(arg: args::DeviceArg, scene: &Scene, quiet: bool) -> Result<Device> {
+    use voxcast_gpu::{DeviceChoice, GpuContext, GpuError};
+    match arg {
+        args::DeviceArg::Cpu => Ok(Device::Cpu),
+        args::DeviceArg::Gpu => {
+            if !voxcast_gpu::supports(scene.render.method) {
+                bail!(
+                    "--device gpu: method `{}` is not implemented on the GPU (it renders uniform, adaptive, adaptive-max, jitter, stratified and mc); use --device cpu or auto",
+                    scene.render.method.name()
+                );
+            }
+            let ctx = GpuContext::new(DeviceChoice::Gpu).context("--device gpu")?;
+            if !quiet {
+                eprintln!("rendering on {}", ctx.info());
+            }
+            Ok(Device::Gpu(ctx))
+        }
+        args::DeviceArg::Auto => {
+            if !voxcast_gpu::supports(scene.render.method) {
+                if !quiet {
+                    eprintln!(
+                        "--device auto: method `{}` has no GPU version; rendering on the CPU",
+                        scene.render.method.name()
+                    );
+                }
+                return Ok(Device::Cpu);
+            }
+            match GpuContext::new(DeviceChoice::Auto) {
+                Ok(ctx) => {
+                    if !quiet {
+                        eprintln!("--device auto: rendering on {}", ctx.info());
+                    }
+                    Ok(Device::Gpu(ctx))
+                }
+                Err(GpuError::NoAdapter(why)) => {
+                    if !quiet {
+                        eprintln!("--device auto: {why}; rendering on the CPU");
+                    }
+                    Ok(Device::Cpu)
+                }
+                Err(e) => Err(e).context("--device auto"),
+            }
+        }
+    }
+}
+
+/// Uploads the prepared volume to the GPU.
+fn gpu_renderer(
+    ctx: &std::sync::Arc<voxcast_gpu::GpuContext>,
+    prepared: &voxcast::scene::Prepared,
+) -> Result<voxcast_gpu::GpuRenderer> {
+    let r = voxcast_gpu::GpuRenderer::new(ctx.clone(), &prepared.volume, prepared.window)
+        .context("uploading the volume to the GPU")?
+        .with_geometry(prepared.geometry.as_deref())?;
+    Ok(r)
+}
+
+/// `voxcast bench --device gpu`: the methods rendered by the GPU.
+struct GpuMethods<'a> {
+    renderer: voxcast_gpu::GpuRenderer,
+    scene: &'a Scene,
+    tf: &'a voxcast::transfer::TransferFunction,
+}
+
+impl voxcast::bench::MethodRenderer for GpuMethods<'_> {
+    fn render(
+        &self,
+        params: &voxcast::render::RenderParams,
+    ) -> voxcast::Result<(Image, voxcast::RenderStats)> {
+        self.renderer
+            .render(self.tf, &self.scene.camera, params)
+            .map_err(|e| voxcast::Error::invalid(e.to_string()))
+    }
+    fn device(&self) -> String {
+        format!("gpu: {}", self.renderer.context().info())
+    }
 }
 
 fn bench(a: BenchArgs) -> Result<()> {
@@ -131,8 +243,32 @@ fn bench(a: BenchArgs) -> Result<()> {
         eprintln!("{}", loaded(&scene, &prepared, t_load));
     }
     if let Some(target) = a.target_psnr {
+        if a.device != args::DeviceArg::Cpu {
+            bail!(
+                "--target-psnr measures the CPU renderer only; drop --device or use --device cpu"
+            );
+        }
         return time_to_quality(&a, &scene, &prepared, methods, target);
     }
+    // `auto` picks the CPU when any method has no GPU version; under `gpu`
+    // such a method is reported as failed in the table (the baseline
+    // `uniform` always renders).
+    let mut device_scene = scene.clone();
+    device_scene.render.method = voxcast::render::Method::Uniform;
+    if a.device == args::DeviceArg::Auto {
+        if let Some(m) = methods.iter().find(|m| !voxcast_gpu::supports(m.method)) {
+            m.apply(&mut device_scene.render);
+        }
+    }
+    let device = pick_device(a.device, &device_scene, quiet)?;
+    let gpu = match &device {
+        Device::Cpu => None,
+        Device::Gpu(ctx) => Some(GpuMethods {
+            renderer: gpu_renderer(ctx, &prepared)?,
+            scene: &scene,
+            tf: &prepared.tf,
+        }),
+    };
     let config = bench::BenchConfig {
         methods,
         repeat: a.repeat,
@@ -157,7 +293,13 @@ fn bench(a: BenchArgs) -> Result<()> {
             bar.set_message(p.task.to_string());
         }
     };
-    let report = bench::run(&scene, &prepared, &config, &progress)?;
+    let report = bench::run_on(
+        &scene,
+        &prepared,
+        &config,
+        &progress,
+        gpu.as_ref().map(|g| g as &dyn bench::MethodRenderer),
+    )?;
     bar.finish_and_clear();
     if !quiet {
         let r = &report.reference;

@@ -447,6 +447,8 @@ pub struct RunInfo {
     pub setup_ms: f64,
     /// What the times measure.
     pub timer: &'static str,
+    /// Where the methods were rendered (`cpu`, or the GPU adapter).
+    pub device: String,
     pub voxcast_version: &'static str,
 }
 
@@ -569,6 +571,28 @@ pub fn run(
     config: &BenchConfig,
     progress: &(dyn Fn(&Progress<'_>) + Sync),
 ) -> Result<BenchReport> {
+    run_on(scene, prepared, config, progress, None)
+}
+
+/// A back end that renders the methods under test in place of the CPU
+/// [`Renderer`] (the GPU renderer of `voxcast-gpu`); the reference is always
+/// the CPU's, so the PSNR column also measures the back end's parity.
+pub trait MethodRenderer: Sync {
+    /// Renders the prepared scene's volume with `params` (and the scene's
+    /// transfer function and camera).
+    fn render(&self, params: &RenderParams) -> Result<(Image, RenderStats)>;
+    /// The device in words, for the report.
+    fn device(&self) -> String;
+}
+
+/// [`run`] with the methods rendered by `methods_on` (`None`: the CPU).
+pub fn run_on(
+    scene: &Scene,
+    prepared: &Prepared,
+    config: &BenchConfig,
+    progress: &(dyn Fn(&Progress<'_>) + Sync),
+    methods_on: Option<&dyn MethodRenderer>,
+) -> Result<BenchReport> {
     if config.repeat == 0 {
         return Err(Error::invalid("repeat must be at least 1"));
     }
@@ -640,6 +664,28 @@ pub fn run(
         let ms = t.elapsed().as_secs_f64() * 1e3;
         r.map(|(img, stats)| (img, stats, ms))
     };
+    let render_method = |index: usize, task: &str, params: &RenderParams| match methods_on {
+        None => render_one(index, task, params),
+        Some(m) => {
+            let t = Instant::now();
+            let r = m.render(params);
+            let ms = t.elapsed().as_secs_f64() * 1e3;
+            progress(&Progress {
+                task,
+                render: index,
+                renders,
+                done: 1,
+                total: 1,
+            });
+            r.map(|(img, stats)| (img, stats, ms))
+        }
+    };
+    if let Some(m) = methods_on {
+        notes.push(format!(
+            "methods rendered on {}; the reference on the CPU",
+            m.device()
+        ));
+    }
     let mut index = 0usize;
 
     // The reference.
@@ -695,7 +741,7 @@ pub fn run(
                 None => format!("{} (warm-up)", slot.spec),
                 Some(r) => format!("{} {}/{}", slot.spec, r + 1, config.repeat),
             };
-            let result = render_one(index, &task, &slot.params);
+            let result = render_method(index, &task, &slot.params);
             index += 1;
             match result {
                 Ok((img, stats, ms)) => {
@@ -794,7 +840,12 @@ pub fn run(
             repeat: config.repeat,
             warmup: config.warmup,
             setup_ms,
-            timer: "wall-clock ms around Renderer::render, renderer built once",
+            timer: if methods_on.is_some() {
+                "wall-clock ms around the back end's render (upload of the camera and transfer function, compute, read-back), renderer built once"
+            } else {
+                "wall-clock ms around Renderer::render, renderer built once"
+            },
+            device: methods_on.map_or_else(|| "cpu".to_string(), |m| m.device()),
             voxcast_version: env!("CARGO_PKG_VERSION"),
         },
         reference: ReferenceInfo {

@@ -1,0 +1,667 @@
+// voxcast GPU ray caster: one invocation per pixel, the same computation as
+// the CPU renderer (crates/voxcast/src/render/ray.rs, march.rs,
+// stochastic.rs): same camera rays, manual trilinear reconstruction of the
+// stored values (8 texel loads, clamped like Grid::sample), the same
+// transfer-function table, opacity correction, block grid (3D DDA) for
+// empty-space skipping, adaptive levels, grouped reuse, early ray
+// termination, and the same seeded random sequences (64-bit SplitMix/PCG
+// emulated with pairs of u32).
+
+struct Params {
+    eye: vec4<f32>,          // xyz eye, w projection (0 perspective, 1 orthographic)
+    forward: vec4<f32>,      // w: half_height·aspect
+    right: vec4<f32>,        // w: half_height
+    up: vec4<f32>,           // w: unused
+    origin_w: vec4<f32>,     // xyz volume origin (world), w: unit (smallest spacing)
+    inv_spacing: vec4<f32>,  // w: base step in voxels
+    box_lo: vec4<f32>,       // w: ert
+    box_hi: vec4<f32>,       // w: k_ref
+    grid_max: vec4<f32>,     // dims − 1 as floats; w: value scale (texel → normalised)
+    background: vec4<f32>,   // linear rgb; w: value offset
+    dims: vec4<u32>,         // xyz dims; w: block size
+    counts: vec4<u32>,       // xyz block counts; w: method
+    size: vec4<u32>,         // width, height, passes, flags
+    seed: vec4<u32>,         // seed lo, hi, splitmix(seed) lo, hi
+    levels: vec4<i32>,       // level_lo, level_hi, optical model, unused
+};
+
+// flags
+const F_SHADING: u32 = 1u;
+const F_GROUPED: u32 = 2u;
+const F_JITTER: u32 = 4u;
+const F_SKIP: u32 = 8u;
+
+// methods
+const M_UNIFORM: u32 = 0u;
+const M_ADAPTIVE: u32 = 1u;
+const M_ADAPTIVE_MAX: u32 = 2u;
+const M_JITTER: u32 = 3u;
+const M_MC: u32 = 4u;
+const M_STRATIFIED: u32 = 5u;
+
+const LUT_SIZE: u32 = 4096u;
+const BIG: f32 = 3.0e38;
+
+@group(0) @binding(0) var<uniform> P: Params;
+@group(0) @binding(1) var vol: texture_3d<f32>;
+@group(0) @binding(2) var lut: texture_1d<f32>;
+@group(0) @binding(3) var<storage, read> empty: array<u32>;
+@group(0) @binding(4) var<storage, read> max_grad: array<f32>;
+@group(0) @binding(5) var<storage, read_write> out_px: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read_write> out_stats: array<u32>;
+
+// ---------------------------------------------------------------- 64-bit ints
+// (lo, hi) pairs.
+
+fn mul32(a: u32, b: u32) -> vec2<u32> {
+    let a0 = a & 0xffffu;
+    let a1 = a >> 16u;
+    let b0 = b & 0xffffu;
+    let b1 = b >> 16u;
+    let p00 = a0 * b0;
+    let p01 = a0 * b1;
+    let p10 = a1 * b0;
+    let p11 = a1 * b1;
+    let mid = (p00 >> 16u) + (p01 & 0xffffu) + (p10 & 0xffffu);
+    let lo = (p00 & 0xffffu) | (mid << 16u);
+    let hi = p11 + (p01 >> 16u) + (p10 >> 16u) + (mid >> 16u);
+    return vec2<u32>(lo, hi);
+}
+
+fn mul64(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    let p = mul32(a.x, b.x);
+    return vec2<u32>(p.x, p.y + a.x * b.y + a.y * b.x);
+}
+
+fn add64(a: vec2<u32>, b: vec2<u32>) -> vec2<u32> {
+    let lo = a.x + b.x;
+    let carry = select(0u, 1u, lo < a.x);
+    return vec2<u32>(lo, a.y + b.y + carry);
+}
+
+fn shr64(a: vec2<u32>, n: u32) -> vec2<u32> {
+    if n == 0u {
+        return a;
+    }
+    if n >= 32u {
+        return vec2<u32>(a.y >> (n - 32u), 0u);
+    }
+    return vec2<u32>((a.x >> n) | (a.y << (32u - n)), a.y >> n);
+}
+
+fn shl64(a: vec2<u32>, n: u32) -> vec2<u32> {
+    if n == 0u {
+        return a;
+    }
+    if n >= 32u {
+        return vec2<u32>(0u, a.x << (n - 32u));
+    }
+    return vec2<u32>(a.x << n, (a.y << n) | (a.x >> (32u - n)));
+}
+
+fn mix64(z0: vec2<u32>) -> vec2<u32> {
+    var z = z0;
+    z = mul64(z ^ shr64(z, 30u), vec2<u32>(0x1CE4E5B9u, 0xBF58476Du));
+    z = mul64(z ^ shr64(z, 27u), vec2<u32>(0x133111EBu, 0x94D049BBu));
+    return z ^ shr64(z, 31u);
+}
+
+fn splitmix(z: vec2<u32>) -> vec2<u32> {
+    return mix64(add64(z, vec2<u32>(0x7F4A7C15u, 0x9E3779B9u)));
+}
+
+// march.rs pixel_random: uniform in [0, 1) per seed and pixel.
+fn pixel_random(x: u32, y: u32) -> f32 {
+    let key = mul64(vec2<u32>(y, x), vec2<u32>(0x7F4A7C15u, 0x9E3779B9u));
+    let z = mix64(vec2<u32>(P.seed.x, P.seed.y) ^ key);
+    return f32(z.y >> 8u) / 16777216.0;
+}
+
+// rng.rs pixel_sequence: the golden-ratio sequence rotated per pixel.
+fn pixel_sequence(x: u32, y: u32, pass_i: u32) -> f32 {
+    let r = pixel_random(x, y);
+    // fract(pass_i·φ⁻¹) with φ⁻¹ split in two parts to keep f32 precision.
+    let hi = fract(f32(pass_i) * 0.6180419921875);
+    let lo = fract(f32(pass_i) * (0.6180339887498949 - 0.6180419921875));
+    let v = fract(r + hi + lo);
+    return min(v, 1.0 - 5.9604645e-8);
+}
+
+// rng.rs PCG32 (XSH-RR).
+struct Rng {
+    state: vec2<u32>,
+    inc: vec2<u32>,
+};
+
+const PCG_MULT: vec2<u32> = vec2<u32>(0x4C957F2Du, 0x5851F42Du);
+
+fn rng_next(r: ptr<function, Rng>) -> u32 {
+    let old = (*r).state;
+    (*r).state = add64(mul64(old, PCG_MULT), (*r).inc);
+    let xs = (shr64(shr64(old, 18u) ^ old, 27u)).x;
+    let rot = old.y >> 27u;
+    return (xs >> rot) | (xs << ((32u - rot) & 31u));
+}
+
+fn rng_for_pixel(x: u32, y: u32, pass_i: u32) -> Rng {
+    let stream = vec2<u32>(x | (y << 16u), pass_i);
+    var r: Rng;
+    r.state = vec2<u32>(0u, 0u);
+    r.inc = shl64(splitmix(stream), 1u) | vec2<u32>(1u, 0u);
+    rng_next(&r);
+    r.state = add64(r.state, vec2<u32>(P.seed.z, P.seed.w));
+    rng_next(&r);
+    return r;
+}
+
+fn rng_uniform(r: ptr<function, Rng>) -> f32 {
+    return f32(rng_next(r) >> 8u) * (1.0 / 16777216.0);
+}
+
+// --------------------------------------------------------------- the volume
+
+fn texel(i: vec3<i32>) -> f32 {
+    return textureLoad(vol, i, 0).x;
+}
+
+// Grid::sample: trilinear, coordinates clamped to the grid.
+fn sample(p0: vec3<f32>) -> f32 {
+    let p = min(max(p0, vec3<f32>(0.0)), P.grid_max.xyz);
+    let dims = vec3<i32>(P.dims.xyz);
+    let last = max(dims - vec3<i32>(2), vec3<i32>(0));
+    let i = min(vec3<i32>(p), last);
+    let f = p - vec3<f32>(i);
+    let j = min(i + vec3<i32>(1), dims - vec3<i32>(1));
+    let c000 = texel(vec3<i32>(i.x, i.y, i.z));
+    let c100 = texel(vec3<i32>(j.x, i.y, i.z));
+    let c010 = texel(vec3<i32>(i.x, j.y, i.z));
+    let c110 = texel(vec3<i32>(j.x, j.y, i.z));
+    let c001 = texel(vec3<i32>(i.x, i.y, j.z));
+    let c101 = texel(vec3<i32>(j.x, i.y, j.z));
+    let c011 = texel(vec3<i32>(i.x, j.y, j.z));
+    let c111 = texel(vec3<i32>(j.x, j.y, j.z));
+    let c00 = c000 + (c100 - c000) * f.x;
+    let c10 = c010 + (c110 - c010) * f.x;
+    let c01 = c001 + (c101 - c001) * f.x;
+    let c11 = c011 + (c111 - c011) * f.x;
+    let c0 = c00 + (c10 - c00) * f.y;
+    let c1 = c01 + (c11 - c01) * f.y;
+    return (c0 + (c1 - c0) * f.z) * P.grid_max.w + P.background.w;
+}
+
+fn gradient(p: vec3<f32>) -> vec3<f32> {
+    let gx = sample(p + vec3<f32>(1.0, 0.0, 0.0)) - sample(p - vec3<f32>(1.0, 0.0, 0.0));
+    let gy = sample(p + vec3<f32>(0.0, 1.0, 0.0)) - sample(p - vec3<f32>(0.0, 1.0, 0.0));
+    let gz = sample(p + vec3<f32>(0.0, 0.0, 1.0)) - sample(p - vec3<f32>(0.0, 0.0, 1.0));
+    return vec3<f32>(gx, gy, gz) * 0.5;
+}
+
+// ------------------------------------------------------------- per-ray state
+
+var<private> acc_c: vec3<f32>;
+var<private> acc_a: f32;
+var<private> n_samples: u32;
+var<private> n_interp: u32;
+var<private> n_shaded: u32;
+var<private> view: vec3<f32>;
+
+// Lut::index: −1 for transparent-below-domain values.
+fn lut_index(v: f32) -> i32 {
+    if v >= 0.0 {
+        return i32(min(v, 1.0) * f32(LUT_SIZE - 1u) + 0.5);
+    }
+    return -1;
+}
+
+fn lut_entry(i: i32) -> vec4<f32> {
+    return textureLoad(lut, i, 0);
+}
+
+// BlinnPhong::shade with the default weights and a headlight.
+fn shade(rgb: vec3<f32>, g: vec3<f32>) -> vec3<f32> {
+    if dot(g, g) < 1e-6 {
+        return rgb;
+    }
+    let n = normalize(g * P.inv_spacing.xyz);
+    let ndl = abs(dot(n, view));
+    let spec = pow(ndl, 24.0);
+    return min(rgb * (0.25 + 0.75 * ndl) + vec3<f32>(0.25 * spec), vec3<f32>(1.0));
+}
+
+struct Eval {
+    entry: i32,   // −1: transparent
+    rgb: vec3<f32>,
+};
+
+// ray.rs evaluate: reconstruct, classify, shade.
+fn evaluate(p: vec3<f32>) -> Eval {
+    var e: Eval;
+    e.entry = -1;
+    let v = sample(p);
+    n_interp += 1u;
+    let i = lut_index(v);
+    if i < 0 {
+        return e;
+    }
+    let t = lut_entry(i);
+    if t.w <= 0.0 {
+        return e;
+    }
+    var rgb = t.xyz;
+    if (P.size.w & F_SHADING) != 0u {
+        rgb = shade(rgb, gradient(p));
+        n_shaded += 1u;
+    }
+    e.entry = i;
+    e.rgb = rgb;
+    return e;
+}
+
+// Acc::add, front to back; true when the ray may stop.
+fn add(rgb: vec3<f32>, alpha: f32) -> bool {
+    var em = rgb * alpha;
+    var ab = alpha;
+    let model = P.levels.z;
+    if model == 0 {
+        em = vec3<f32>(0.0);
+    } else if model == 1 {
+        ab = 0.0;
+    }
+    let t = 1.0 - acc_a;
+    acc_c += em * t;
+    acc_a += ab * t;
+    let ert = P.box_lo.w;
+    return acc_a >= ert && ert < 1.0;
+}
+
+fn alpha_for(entry: i32, len_world: f32) -> f32 {
+    return 1.0 - exp(-lut_entry(entry).w * len_world / P.origin_w.w);
+}
+
+fn round_away(x: f32) -> f32 {
+    return sign(x) * floor(abs(x) + 0.5);
+}
+
+fn group_size(t: f32, t_exit: f32) -> u32 {
+    if t <= t_exit / 3.0 {
+        return 1u;
+    }
+    if t <= t_exit * (2.0 / 3.0) {
+        return 2u;
+    }
+    return 3u;
+}
+
+fn level(k: f32, t_out: f32, tm: f32) -> i32 {
+    let f = k * t_out / max(tm, 1e-6);
+    if f > 0.0 {
+        return clamp(i32(round_away(log2(P.box_hi.w / f))), P.levels.x, P.levels.y);
+    }
+    return P.levels.y;
+}
+
+fn safe_inv(d: f32) -> f32 {
+    if d == 0.0 {
+        return BIG;
+    }
+    return 1.0 / d;
+}
+
+// ------------------------------------------------------------ the block DDA
+
+struct Walker {
+    t: f32,
+    t_out: f32,
+    block: vec3<i32>,
+    step: vec3<i32>,
+    t_max: vec3<f32>,
+    t_delta: vec3<f32>,
+};
+
+fn walker_new(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32) -> Walker {
+    var w: Walker;
+    let b = f32(P.dims.w);
+    let p = o + d * t_in;
+    w.t = t_in;
+    w.t_out = t_out;
+    for (var a = 0; a < 3; a += 1) {
+        let n = i32(P.counts[a]);
+        let q = p[a] / b;
+        var c: i32;
+        if d[a] < 0.0 {
+            c = i32(ceil(q)) - 1;
+        } else {
+            c = i32(floor(q));
+        }
+        c = clamp(c, 0, n - 1);
+        w.block[a] = c;
+        w.step[a] = 0;
+        w.t_max[a] = BIG;
+        w.t_delta[a] = BIG;
+        if d[a] > 0.0 {
+            w.step[a] = 1;
+            w.t_max[a] = (f32(c + 1) * b - o[a]) / d[a];
+            w.t_delta[a] = b / d[a];
+        } else if d[a] < 0.0 {
+            w.step[a] = -1;
+            w.t_max[a] = (f32(c) * b - o[a]) / d[a];
+            w.t_delta[a] = -b / d[a];
+        }
+    }
+    return w;
+}
+
+struct Stretch {
+    ta: f32,
+    tb: f32,
+    index: u32,
+};
+
+// Iterator::next of BlockWalker; call only while w.t < w.t_out.
+fn walker_next(w: ptr<function, Walker>) -> Stretch {
+    var a = 2;
+    if (*w).t_max.x <= (*w).t_max.y && (*w).t_max.x <= (*w).t_max.z {
+        a = 0;
+    } else if (*w).t_max.y <= (*w).t_max.z {
+        a = 1;
+    }
+    let t_exit = max(min((*w).t_max[a], (*w).t_out), (*w).t);
+    let bl = (*w).block;
+    var s: Stretch;
+    s.index = u32(bl.x) + P.counts.x * (u32(bl.y) + P.counts.y * u32(bl.z));
+    s.ta = (*w).t;
+    s.tb = t_exit;
+    (*w).t = t_exit;
+    (*w).t_max[a] += (*w).t_delta[a];
+    (*w).block[a] += (*w).step[a];
+    if (*w).block[a] < 0 || (*w).block[a] >= i32(P.counts[a]) {
+        (*w).t = (*w).t_out;
+    }
+    return s;
+}
+
+// ---------------------------------------------------------------- marchers
+
+// ray.rs march_blocks: uniform, jitter and the adaptive marchers.
+fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> bool {
+    var pend = false;
+    var pend_t = 0.0;
+    var pend_entry = 0;
+    var pend_rgb = vec3<f32>(0.0);
+    let method = P.counts.w;
+    let grouped = (P.size.w & F_GROUPED) != 0u;
+    let skip = (P.size.w & F_SKIP) != 0u;
+    let unit = P.origin_w.w;
+    var w = walker_new(o, d, t_in, t_out);
+    loop {
+        if w.t >= w.t_out {
+            break;
+        }
+        let st = walker_next(&w);
+        let ta = st.ta;
+        let tb = st.tb;
+        let is_empty = empty[st.index] != 0u;
+        var j = 0;
+        if method == M_ADAPTIVE || method == M_ADAPTIVE_MAX {
+            if is_empty {
+                j = P.levels.y;
+            } else if method == M_ADAPTIVE {
+                let tm = 0.5 * (ta + tb);
+                let g = gradient(o + d * tm);
+                n_interp += 6u;
+                let k = max(max(abs(g.x), abs(g.y)), abs(g.z));
+                j = level(k, t_out, tm);
+            } else {
+                j = level(max_grad[st.index], t_out, 0.5 * (ta + tb));
+            }
+        }
+        let ratio = P.inv_spacing.w * exp2(f32(j));
+        let s = ratio * unit;
+        let n0 = max(ceil((ta - t0) / s), 0.0);
+        let n1 = max(ceil((tb - t0) / s), 0.0);
+        if n1 <= n0 {
+            continue;
+        }
+        let k0 = u32(n0);
+        let k1 = u32(n1);
+        let t_first = t0 + n0 * s;
+        if pend {
+            pend = false;
+            let alpha = alpha_for(pend_entry, t_first - pend_t);
+            if alpha > 0.0 && add(pend_rgb, alpha) {
+                return true;
+            }
+        }
+        if is_empty && skip {
+            continue;
+        }
+        var last: Eval;
+        last.entry = -1;
+        for (var k = k0; k < k1; k += 1u) {
+            let t = t0 + f32(k) * s;
+            n_samples += 1u;
+            let head = !grouped || k == k0 || (k % group_size(t, t_out)) == 0u;
+            if head {
+                last = evaluate(o + d * t);
+            }
+            if last.entry < 0 {
+                continue;
+            }
+            if k + 1u < k1 {
+                let alpha = 1.0 - exp(-lut_entry(last.entry).w * ratio);
+                if alpha > 0.0 && add(last.rgb, alpha) {
+                    return true;
+                }
+            } else {
+                pend = true;
+                pend_t = t;
+                pend_entry = last.entry;
+                pend_rgb = last.rgb;
+            }
+        }
+    }
+    if pend {
+        let alpha = alpha_for(pend_entry, max(t_out, pend_t) - pend_t);
+        return alpha > 0.0 && add(pend_rgb, alpha);
+    }
+    return false;
+}
+
+fn in_empty_block(p: vec3<f32>) -> bool {
+    let b = f32(P.dims.w);
+    let c = P.counts.xyz;
+    let q = max(p / b, vec3<f32>(0.0));
+    let i = min(vec3<u32>(q), c - vec3<u32>(1u));
+    return empty[i.x + c.x * (i.y + c.y * i.z)] != 0u;
+}
+
+// Composites the sample at p standing for a stretch of `len` (world).
+fn mc_sample(p: vec3<f32>, len: f32) -> bool {
+    n_samples += 1u;
+    let e = evaluate(p);
+    if e.entry < 0 {
+        return false;
+    }
+    let alpha = alpha_for(e.entry, len);
+    return alpha > 0.0 && add(e.rgb, alpha);
+}
+
+// stochastic.rs uniform_mc: ⌈L/step⌉ sorted uniform positions (S1 eqs. 5–6).
+fn march_mc(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
+    var rng = rng_for_pixel(px.x, px.y, pass_i);
+    let step = P.inv_spacing.w * P.origin_w.w;
+    let len = t_out - t_in;
+    let count = u32(max(ceil(len / step), 1.0));
+    let w = len / f32(count);
+    let skip = (P.size.w & F_SKIP) != 0u;
+    var cur = 1.0;
+    for (var left = count; left > 0u; left -= 1u) {
+        cur *= pow(1.0 - rng_uniform(&rng), 1.0 / f32(left));
+        let u = clamp(1.0 - cur, 0.0, 1.0 - 1.1920929e-7);
+        let p = o + d * (t_in + u * len);
+        if skip && in_empty_block(p) {
+            continue;
+        }
+        if mc_sample(p, w) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// stochastic.rs interval_random: counter-based uniform for interval k.
+fn interval_random(key: vec2<u32>, k: u32) -> f32 {
+    let z = splitmix(key ^ mul64(vec2<u32>(k, 0u), vec2<u32>(0x6659FD93u, 0xD6E8FEB8u)));
+    return f32(z.y >> 8u) / 16777216.0;
+}
+
+// stochastic.rs stratified: one uniform position per step interval.
+fn march_stratified(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
+    var rng = rng_for_pixel(px.x, px.y, pass_i);
+    let unit = P.origin_w.w;
+    let s = P.inv_spacing.w * unit;
+    let klo = rng_next(&rng);
+    let khi = rng_next(&rng);
+    let key = vec2<u32>(klo, khi);
+    let last = u32(max(ceil((t_out - t_in) / s), 1.0)) - 1u;
+    let skip = (P.size.w & F_SKIP) != 0u;
+    var w = walker_new(o, d, t_in, t_out);
+    loop {
+        if w.t >= w.t_out {
+            break;
+        }
+        let st = walker_next(&w);
+        if skip && empty[st.index] != 0u {
+            continue;
+        }
+        let k0 = u32(max(floor((st.ta - t_in) / s), 0.0));
+        let k1 = min(u32(max(floor((st.tb - t_in) / s), 0.0)), last);
+        for (var k = k0; k <= k1; k += 1u) {
+            let a = t_in + f32(k) * s;
+            var len = s;
+            if k == last {
+                len = t_out - a;
+            }
+            let t = a + interval_random(key, k) * len;
+            if t < st.ta || t >= st.tb {
+                continue;
+            }
+            n_samples += 1u;
+            let e = evaluate(o + d * t);
+            if e.entry < 0 {
+                continue;
+            }
+            var alpha: f32;
+            if k == last {
+                alpha = alpha_for(e.entry, len);
+            } else {
+                alpha = 1.0 - exp(-lut_entry(e.entry).w * P.inv_spacing.w);
+            }
+            if alpha > 0.0 && add(e.rgb, alpha) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+// ------------------------------------------------------------------- entry
+
+var<workgroup> wg_stats: array<atomic<u32>, 6>;
+
+fn intersect_box(o: vec3<f32>, inv_d: vec3<f32>) -> vec2<f32> {
+    let t0 = (P.box_lo.xyz - o) * inv_d;
+    let t1 = (P.box_hi.xyz - o) * inv_d;
+    let tmin = min(t0, t1);
+    let tmax = max(t0, t1);
+    let enter = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
+    let exit = min(min(tmax.x, tmax.y), tmax.z);
+    return vec2<f32>(enter, exit);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+) {
+    if lid < 6u {
+        atomicStore(&wg_stats[lid], 0u);
+    }
+    workgroupBarrier();
+    let width = P.size.x;
+    let height = P.size.y;
+    let passes = P.size.z;
+    let method = P.counts.w;
+    var rays = 0u;
+    var hits = 0u;
+    var terminated = 0u;
+    n_samples = 0u;
+    n_interp = 0u;
+    n_shaded = 0u;
+    if gid.x < width && gid.y < height {
+        rays = 1u;
+        // Camera::ray_at through the pixel centre.
+        let pxf = f32(gid.x) + 0.5;
+        let pyf = f32(gid.y) + 0.5;
+        let sx = (2.0 * pxf / f32(width) - 1.0) * P.forward.w;
+        let sy = (1.0 - 2.0 * pyf / f32(height)) * P.right.w;
+        var origin = P.eye.xyz;
+        var dir = P.forward.xyz;
+        if P.eye.w == 0.0 {
+            dir = normalize(P.forward.xyz + P.right.xyz * sx + P.up.xyz * sy);
+        } else {
+            origin = P.eye.xyz + P.right.xyz * sx + P.up.xyz * sy;
+        }
+        view = -dir;
+        let o = (origin - P.origin_w.xyz) * P.inv_spacing.xyz;
+        let d = dir * P.inv_spacing.xyz;
+        let inv_d = vec3<f32>(safe_inv(d.x), safe_inv(d.y), safe_inv(d.z));
+        let te = intersect_box(o, inv_d);
+        var sum = vec4<f32>(0.0);
+        if te.y > te.x {
+            hits = 1u;
+            let step = P.inv_spacing.w * P.origin_w.w;
+            for (var pass_i = 0u; pass_i < passes; pass_i += 1u) {
+                acc_c = vec3<f32>(0.0);
+                acc_a = 0.0;
+                var t0 = te.x;
+                if (P.size.w & F_JITTER) != 0u {
+                    t0 = te.x + pixel_sequence(gid.x, gid.y, pass_i) * step;
+                }
+                var stop = false;
+                if method == M_MC {
+                    stop = march_mc(o, d, te.x, te.y, gid.xy, pass_i);
+                } else if method == M_STRATIFIED {
+                    stop = march_stratified(o, d, te.x, te.y, gid.xy, pass_i);
+                } else {
+                    stop = march_blocks(o, d, t0, te.x, te.y);
+                }
+                if stop {
+                    terminated += 1u;
+                }
+                sum += vec4<f32>(acc_c, acc_a);
+            }
+            // The CPU counts rays once per pass_i.
+            rays = passes;
+            hits = passes;
+        } else {
+            rays = passes;
+        }
+        let c = sum / f32(passes);
+        let rgb = c.xyz + P.background.xyz * (1.0 - c.w);
+        out_px[gid.y * width + gid.x] = vec4<f32>(rgb, c.w);
+    }
+    atomicAdd(&wg_stats[0], rays);
+    atomicAdd(&wg_stats[1], hits);
+    atomicAdd(&wg_stats[2], n_samples);
+    atomicAdd(&wg_stats[3], n_interp);
+    atomicAdd(&wg_stats[4], n_shaded);
+    atomicAdd(&wg_stats[5], terminated);
+    workgroupBarrier();
+    if lid < 6u {
+        let wg = wid.y * nwg.x + wid.x;
+        out_stats[wg * 6u + lid] = atomicLoad(&wg_stats[lid]);
+    }
+}
