@@ -676,7 +676,8 @@ impl ViewerApp {
             ui.strong("Time");
             let n = t.times.len();
             ui.horizontal(|ui| {
-                let label = if t.playing { "⏸ pause" } else { "▶ play" };
+                // Plain words: the default fonts have no media-control glyphs.
+                let label = if t.playing { "pause" } else { "play" };
                 if ui.button(label).clicked() {
                     t.playing = !t.playing;
                     t.last_step = Instant::now();
@@ -786,7 +787,7 @@ impl ViewerApp {
                 ui.push_id(i, |ui| {
                     ui.horizontal(|ui| {
                         changed |= light_editor(ui, l);
-                        if ui.small_button("✖").clicked() {
+                        if ui.small_button("remove").clicked() {
                             remove = Some(i);
                         }
                     });
