@@ -23,7 +23,8 @@ raw files with --raw-dims, and builtin:NAME.
 
 Make volumes with `voxcast simulate smoke` (a fire in a room) and `voxcast
 cloud` (S3 particle clouds); turn a series into a GIF or MP4 with `voxcast
-animate`; measure methods with `voxcast bench` and `voxcast bench-frames`.";
+animate`; measure methods with `voxcast bench` and `voxcast bench-frames`;
+explore a volume or a series interactively with `voxcast view`.";
 
 #[derive(Parser)]
 #[command(name = "voxcast", version, about = ABOUT, long_about = LONG_ABOUT)]
@@ -58,6 +59,9 @@ pub enum Command {
     /// Simulate a cloud (S3 particle system) into a frame folder.
     #[command(after_long_help = crate::cloud::CLOUD_HELP)]
     Cloud(Box<crate::cloud::CloudArgs>),
+    /// Explore a volume in a window: orbit, zoom, edit the transfer function, play a series.
+    #[command(after_long_help = VIEW_HELP)]
+    View(Box<ViewArgs>),
 }
 
 const RENDER_HELP: &str = "\
@@ -88,6 +92,43 @@ Examples:
   voxcast bench ../shared/data/teapot_ct/slices --size 256x256
   voxcast bench builtin:demo --methods uniform,adaptive --repeat 3 --json b.json --chart b.png
   voxcast bench --scene saved.toml --markdown        # the README's table";
+
+const VIEW_HELP: &str = "\
+A window with the volume on the left and the controls on the right:
+  drag             orbit (the volume turns with the mouse)
+  wheel            zoom
+  shift-drag, right- or middle-drag   pan
+  double-click     back to the scene's framing
+While the view changes, frames are rendered at a reduced resolution sized to
+keep about 20 frames per second; once it is still for 0.15 s, the full image
+follows. The transfer-function editor shows the data's histogram (log counts)
+over the window: click to add a point, drag to move it, right-click to remove
+it; the colour bar below it works the same, and the selected colour point's
+colour is picked under the editor. Series (frame folders from `voxcast
+simulate`/`voxcast cloud`, FDS .smv, folders or globs of volume files) get a
+time slider and play.
+
+`Save scene` writes a scene file that `voxcast render --scene FILE` renders to
+the same image as the view (same camera, transfer function, method and
+size); `screenshot` writes the view's pixels as PNG.
+
+Scripted use (tests, pictures, measurements): with --screenshot and/or
+--exit-after-frames the viewer waits until at least N frames are drawn and
+the refined image is on screen, writes the screenshot (the window's pixels
+cropped to the volume view) and --save-scene, and exits 0. --orbit S first
+turns the camera for S seconds (30°/s) and reports the frame rate while
+moving and the time to the refined image (--stats-json).
+
+A display is needed; without one use a virtual one: `xvfb-run -a voxcast view …`
+(software Vulkan: apt install mesa-vulkan-drivers xvfb xauth).
+
+Examples:
+  voxcast view ../shared/data/teapot_ct/slices --tf ct-bone
+  voxcast view frames/                              # a simulated smoke series
+  voxcast view --scene saved.toml                   # continue from a saved scene
+  xvfb-run -a voxcast view ../shared/data/neghip/neghip.nhdr \\
+      --screenshot shot.png --exit-after-frames 30 --save-scene shot.toml
+  voxcast render --scene shot.toml -o same.png      # the same picture";
 
 /// Options to open an input (shared by render, bench and info).
 #[derive(Args, Clone, Default)]
@@ -467,6 +508,55 @@ pub enum DeviceArg {
     Cpu,
     Gpu,
     Auto,
+}
+
+#[derive(Args)]
+pub struct ViewArgs {
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Sampling method along rays (as for `voxcast render --method`; it can
+    /// be changed in the window).
+    #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
+    pub method: Option<String>,
+    /// Scripted: once the refined image is on screen, write the view's
+    /// pixels (the window cropped to the volume view) as PNG and exit.
+    #[arg(long, value_name = "FILE.png", help_heading = "Scripted use")]
+    pub screenshot: Option<PathBuf>,
+    /// Scripted: exit after at least N frames, once the refined image is on
+    /// screen (after the screenshot, if one is asked for).
+    #[arg(long, value_name = "N", help_heading = "Scripted use")]
+    pub exit_after_frames: Option<u64>,
+    /// Write the scene of what is on screen when a scripted run exits
+    /// (`voxcast render --scene FILE` reproduces the view).
+    #[arg(long, value_name = "FILE", help_heading = "Scripted use")]
+    pub save_scene: Option<PathBuf>,
+    /// Scripted measurement: turn the camera for this many seconds (30°/s),
+    /// then wait for the refined image; reports frames per second while
+    /// moving and the time to the refined image.
+    #[arg(long, value_name = "SECONDS", help_heading = "Scripted use")]
+    pub orbit: Option<f32>,
+    /// Write what a scripted run measured as JSON.
+    #[arg(long, value_name = "FILE", help_heading = "Scripted use")]
+    pub stats_json: Option<PathBuf>,
+}
+
+impl ViewArgs {
+    /// The scene these flags imply; without --size or --scene the view is
+    /// 800×600.
+    pub fn scene(&self) -> Result<Scene> {
+        let mut scene = self.scene.base_scene()?;
+        if self.scene.scene.is_none() {
+            scene.render.width = 800;
+            scene.render.height = 600;
+        }
+        if let Some(m) = &self.method {
+            MethodSpec::parse(m)
+                .with_context(|| format!("--method {m}"))?
+                .apply(&mut scene.render);
+        }
+        self.scene.apply(&mut scene)?;
+        Ok(scene)
+    }
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]

@@ -10,7 +10,7 @@ mod frames_chart;
 mod simulate;
 
 use anyhow::{bail, Context, Result};
-use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs};
+use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs, ViewArgs};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -35,6 +35,7 @@ fn main() {
         Command::Simulate(a) => simulate::run(a),
         Command::Animate(a) => animate::run(*a),
         Command::BenchFrames(a) => bench_frames::run(*a),
+        Command::View(a) => view(*a),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -216,6 +217,76 @@ impl voxcast::bench::MethodRenderer for GpuMethods<'_> {
     fn device(&self) -> String {
         format!("gpu: {}", self.renderer.context().info())
     }
+}
+
+fn view(a: ViewArgs) -> Result<()> {
+    let scene = a.scene()?;
+    let input = scene.input.path.clone();
+    if let Some(f) = &a.screenshot {
+        check_output(f, &input, &["png"])?;
+    }
+    if let Some(f) = &a.save_scene {
+        check_output(f, &input, &["toml"])?;
+    }
+    if let Some(f) = &a.stats_json {
+        check_output(f, &input, &[])?;
+    }
+    if let Some(s) = a.orbit {
+        if !(s.is_finite() && s > 0.0 && s <= 600.0) {
+            bail!("--orbit {s}: expected seconds in (0, 600]");
+        }
+    }
+    let scripted = a.screenshot.is_some() || a.exit_after_frames.is_some() || a.orbit.is_some();
+    if !scripted && (a.save_scene.is_some() || a.stats_json.is_some()) {
+        bail!("--save-scene and --stats-json belong to a scripted run: add --screenshot FILE, --exit-after-frames N or --orbit S (in the window, use the Save buttons)");
+    }
+    let options = voxcast_view::ViewOptions {
+        backend: voxcast_view::Backend::Cpu,
+        screenshot: a.screenshot.clone(),
+        exit_after_frames: a.exit_after_frames,
+        save_scene: a.save_scene.clone(),
+        orbit: a.orbit,
+    };
+    let stats = voxcast_view::run(scene, options)?;
+    if let Some(f) = &a.screenshot {
+        eprintln!("wrote {}", f.display());
+    }
+    if let Some(f) = &a.save_scene {
+        eprintln!("wrote {}", f.display());
+    }
+    if a.orbit.is_some() {
+        let mut p = stats.preview_render_ms.clone();
+        p.sort_by(f64::total_cmp);
+        let median = p.get(p.len() / 2).copied().unwrap_or(f64::NAN);
+        eprintln!(
+            "{} {}×{}: {:.1} frames/s while moving ({} frames in {:.2} s; previews 1/{} = {}×{}, median {:.0} ms); refined image {} ms after the camera stopped (full render {} ms)",
+            stats.backend,
+            stats.view[0],
+            stats.view[1],
+            stats.fps_while_moving(),
+            stats.frames_while_moving,
+            stats.orbit_seconds,
+            stats.preview_divisor,
+            stats.preview_size[0],
+            stats.preview_size[1],
+            median,
+            stats
+                .refined_after_stop_ms
+                .map_or("?".into(), |t| format!("{t:.0}")),
+            stats
+                .full_render_ms
+                .last()
+                .map_or("?".into(), |t| format!("{t:.0}")),
+        );
+    }
+    if let Some(f) = &a.stats_json {
+        let json = serde_json::to_string_pretty(&stats)?;
+        voxcast::image::atomic_write(f, |w| {
+            use std::io::Write;
+            writeln!(w, "{json}")
+        })?;
+    }
+    Ok(())
 }
 
 fn bench(a: BenchArgs) -> Result<()> {

@@ -1,0 +1,221 @@
+//! `voxcast view` end to end in a virtual display (Xvfb) with software
+//! Vulkan (lavapipe): the screenshot of the window (the view's pixels as
+//! the user sees them) must match `voxcast render` of the scene the viewer
+//! saved. Without xvfb-run the tests skip with a note — except under CI
+//! (`CI=true`), where a missing display server or Vulkan driver fails them.
+
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn ci() -> bool {
+    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
+}
+
+/// True when `xvfb-run` can be found; otherwise skips (fails under CI).
+fn have_xvfb() -> bool {
+    let found = Command::new("sh")
+        .args(["-c", "command -v xvfb-run"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        if ci() {
+            panic!("xvfb-run is missing (apt-get install xvfb xauth mesa-vulkan-drivers)");
+        }
+        eprintln!("skipping: xvfb-run not found (apt-get install xvfb xauth mesa-vulkan-drivers)");
+    }
+    found
+}
+
+/// Runs `cmd` with a time limit; kills it past the limit.
+fn run_with_limit(mut cmd: Command, limit: Duration) -> Output {
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("start the command");
+    let start = Instant::now();
+    loop {
+        if child.try_wait().expect("wait").is_some() {
+            return child.wait_with_output().expect("output");
+        }
+        if start.elapsed() > limit {
+            let _ = child.kill();
+            let o = child.wait_with_output().expect("output");
+            panic!(
+                "timed out after {limit:?}: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
+}
+
+/// `xvfb-run -a voxcast view ARGS` in `dir`, on Vulkan only.
+fn view(args: &[&str], dir: &Path) -> Output {
+    let runtime = dir.join("xdg");
+    std::fs::create_dir_all(&runtime).unwrap();
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(&runtime, std::fs::Permissions::from_mode(0o700)).unwrap();
+    }
+    let mut cmd = Command::new("xvfb-run");
+    cmd.args(["-a", "-s", "-screen 0 1600x1200x24"])
+        .arg(env!("CARGO_BIN_EXE_voxcast"))
+        .arg("view")
+        .args(args)
+        .current_dir(dir)
+        // A missing Vulkan driver must fail, not fall back to OpenGL.
+        .env("WGPU_BACKEND", "vulkan")
+        .env("XDG_RUNTIME_DIR", &runtime);
+    run_with_limit(cmd, Duration::from_secs(400))
+}
+
+fn voxcast(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_voxcast"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run voxcast")
+}
+
+/// The screenshot against `voxcast render --scene` of the saved scene.
+fn check_matches_render(dir: &Path) -> f64 {
+    let o = voxcast(
+        &["render", "--scene", "s.toml", "-o", "render.png", "-q"],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let shot = voxcast::Image::read(&dir.join("out.png")).unwrap();
+    let render = voxcast::Image::read(&dir.join("render.png")).unwrap();
+    assert_eq!(
+        (shot.width, shot.height),
+        (render.width, render.height),
+        "the saved scene has the view's size"
+    );
+    // Not an empty picture: the volume covers a good part of the view.
+    let lit = shot
+        .pixels
+        .iter()
+        .filter(|p| p[0] + p[1] + p[2] > 0.05)
+        .count();
+    assert!(
+        lit > shot.pixels.len() / 50,
+        "the screenshot is nearly empty ({lit} lit pixels)"
+    );
+    voxcast::metrics::psnr(&shot, &render).unwrap()
+}
+
+#[test]
+fn screenshot_matches_render_of_the_saved_scene() {
+    let Some(data) = voxcast::testdata::data_path("teapot_ct/slices") else {
+        return;
+    };
+    if !have_xvfb() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let data = data.to_string_lossy().into_owned();
+    let o = view(
+        &[
+            &data,
+            "--size",
+            "400x300",
+            "--azimuth",
+            "35",
+            "--elevation",
+            "25",
+            "--screenshot",
+            "out.png",
+            "--exit-after-frames",
+            "30",
+            "--save-scene",
+            "s.toml",
+        ],
+        dir.path(),
+    );
+    assert!(
+        o.status.success(),
+        "voxcast view failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
+    assert_eq!((scene.render.width, scene.render.height), (400, 300));
+    assert_eq!((scene.camera.azimuth, scene.camera.elevation), (35.0, 25.0));
+    assert!(
+        scene.transfer.map.is_some(),
+        "the edited map is written inline"
+    );
+    let psnr = check_matches_render(dir.path());
+    eprintln!("view vs render: PSNR {psnr:.2} dB");
+    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+}
+
+#[test]
+fn series_frame_and_time_are_saved_and_reproduced() {
+    let Some(smv) = voxcast::testdata::data_path("fds_room/room_smoke.smv") else {
+        return;
+    };
+    if !have_xvfb() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let smv = smv.to_string_lossy().into_owned();
+    let o = view(
+        &[
+            &smv,
+            "--time",
+            "30",
+            "--size",
+            "320x240",
+            "--azimuth",
+            "-30",
+            "--elevation",
+            "30",
+            "--screenshot",
+            "out.png",
+            "--exit-after-frames",
+            "5",
+            "--save-scene",
+            "s.toml",
+        ],
+        dir.path(),
+    );
+    assert!(
+        o.status.success(),
+        "voxcast view failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
+    let t = scene.input.options.time.expect("the frame's time is saved");
+    assert!((t - 30.0).abs() < 0.5, "time {t}");
+    let psnr = check_matches_render(dir.path());
+    eprintln!("series view vs render: PSNR {psnr:.2} dB");
+    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+}
+
+#[test]
+fn view_without_a_display_or_with_bad_flags_fails_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    // Scripted-only flags without a scripted run.
+    let o = voxcast(&["view", "--save-scene", "s.toml"], dir.path());
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("--save-scene") && e.contains("scripted"), "{e}");
+    // A screenshot must be a PNG.
+    let o = voxcast(&["view", "--screenshot", "s.jpg"], dir.path());
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains(".png"));
+    // No display: a clear error, not a panic.
+    let o = Command::new(env!("CARGO_BIN_EXE_voxcast"))
+        .args(["view", "--exit-after-frames", "1"])
+        .current_dir(dir.path())
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("error:") && !e.contains("panicked"), "{e}");
+}

@@ -1,0 +1,158 @@
+//! The interactive viewer of voxcast (`voxcast view`): a window showing a
+//! volume that turns with the mouse, with a transfer-function editor over
+//! the data's histogram, the renderer's options, a time slider for series,
+//! and screenshot/scene saving such that `voxcast render --scene` draws
+//! exactly what is on screen.
+//!
+//! The window is egui on wgpu (eframe); the frames come from a
+//! [`backend::FrameRenderer`] on a worker thread ([`worker`]), refined
+//! progressively ([`progressive`]). The parts with logic of their own —
+//! the transfer-function model ([`tf_model`]), the camera controller
+//! ([`camera_ctl`]), the scheduler, the screenshot crop — need no window and
+//! are tested without one.
+
+mod app;
+pub mod backend;
+pub mod camera_ctl;
+pub mod progressive;
+pub mod screenshot;
+pub mod tf_model;
+mod tf_widget;
+pub mod worker;
+
+pub use backend::Backend;
+
+use serde::Serialize;
+use std::path::PathBuf;
+use std::sync::{Arc, Mutex};
+use voxcast::scene::{Scene, BUILTIN_PREFIX};
+use voxcast::volume::Series;
+
+/// Errors of the viewer.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    /// Loading or preparing the scene failed.
+    #[error(transparent)]
+    Scene(#[from] voxcast::Error),
+    /// The window could not be opened.
+    #[error("cannot open the viewer window: {0}")]
+    Window(String),
+    /// A scripted run (`--screenshot`, `--exit-after-frames`) failed.
+    #[error("{0}")]
+    Script(String),
+}
+
+/// How to run the viewer.
+#[derive(Clone, Debug, Default)]
+pub struct ViewOptions {
+    pub backend: Backend,
+    /// Scripted: write the view's pixels here, then exit.
+    pub screenshot: Option<PathBuf>,
+    /// Scripted: exit after at least this many UI frames, once the refined
+    /// image is on screen (and the screenshot written).
+    pub exit_after_frames: Option<u64>,
+    /// Write the scene of what is on screen here on a scripted exit.
+    pub save_scene: Option<PathBuf>,
+    /// Scripted measurement: orbit the camera for this many seconds first.
+    pub orbit: Option<f32>,
+}
+
+/// What a scripted run measured.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct ScriptStats {
+    pub backend: String,
+    /// Full-quality view size in pixels.
+    pub view: [u32; 2],
+    /// UI frames drawn.
+    pub ui_frames: u64,
+    /// Length of the scripted orbit (s).
+    pub orbit_seconds: f64,
+    /// New images shown during the orbit.
+    pub frames_while_moving: u64,
+    /// Render time of each preview (ms).
+    pub preview_render_ms: Vec<f64>,
+    /// The last preview's divisor and size.
+    pub preview_divisor: u32,
+    pub preview_size: [u32; 2],
+    /// Render time of each full-quality frame (ms).
+    pub full_render_ms: Vec<f64>,
+    /// From the end of the orbit to the refined image on screen (ms).
+    pub refined_after_stop_ms: Option<f64>,
+}
+
+impl ScriptStats {
+    /// Images shown per second during the orbit.
+    pub fn fps_while_moving(&self) -> f64 {
+        if self.orbit_seconds > 0.0 {
+            self.frames_while_moving as f64 / self.orbit_seconds
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Opens `scene`'s input (a series when it has more than one frame) and
+/// shows it in a window until the window is closed (or, scripted, until the
+/// screenshot is written). Returns what a scripted run measured.
+pub fn run(scene: Scene, options: ViewOptions) -> Result<ScriptStats, ViewError> {
+    let (series, volume) = open_input(&scene)?;
+    let prepared = scene.prepare_with(volume)?;
+    let (w, h) = (scene.render.width, scene.render.height);
+    let outcome = Arc::new(Mutex::new(None));
+    let setup = app::Setup {
+        tf: prepared.tf,
+        window: prepared.window,
+        volume: Arc::new(prepared.volume),
+        geometry: prepared.geometry,
+        series,
+        options: options.clone(),
+        outcome: outcome.clone(),
+        scene,
+    };
+    let native = eframe::NativeOptions {
+        viewport: eframe::egui::ViewportBuilder::default()
+            .with_title("voxcast view")
+            .with_inner_size([w as f32 + app::PANEL_WIDTH, h as f32 + app::BAR_HEIGHT]),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    eframe::run_native(
+        "voxcast view",
+        native,
+        Box::new(move |cc| Ok(Box::new(app::ViewerApp::new(cc, setup)))),
+    )
+    .map_err(|e| {
+        ViewError::Window(format!(
+            "{e} (a display is needed: on a machine without one run `xvfb-run -a voxcast view …`)"
+        ))
+    })?;
+    let scripted = options.screenshot.is_some()
+        || options.exit_after_frames.is_some()
+        || options.orbit.is_some();
+    let result = outcome.lock().unwrap_or_else(|e| e.into_inner()).take();
+    match result {
+        Some(Ok(stats)) => Ok(stats),
+        Some(Err(e)) => Err(ViewError::Script(e)),
+        None if scripted => Err(ViewError::Script(
+            "the window was closed before the scripted run finished".into(),
+        )),
+        None => Ok(ScriptStats::default()),
+    }
+}
+
+/// The input as a series of more than one frame (with the frame to show
+/// first: the one nearest `--time`, else the first) and that frame's
+/// volume; or a single volume.
+fn open_input(scene: &Scene) -> Result<(Option<(Series, usize)>, voxcast::Volume), ViewError> {
+    let path = &scene.input.path;
+    if !path.starts_with(BUILTIN_PREFIX) {
+        let opts = &scene.input.options;
+        let series = Series::open(std::path::Path::new(path), opts)?;
+        if series.len() > 1 {
+            let frame = opts.time.map_or(0, |t| series.nearest(t));
+            let v = series.load(frame, opts)?;
+            return Ok((Some((series, frame)), v));
+        }
+    }
+    Ok((None, scene.load_volume()?))
+}

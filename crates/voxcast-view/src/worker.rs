@@ -1,0 +1,392 @@
+//! The render thread: the UI never waits for a render. The UI puts its
+//! newest request in a one-place mailbox (a newer request replaces one not
+//! yet started, so stale frames are skipped, never queued); the thread takes
+//! it, loads the frame of a series if it changed, renders, and sends the
+//! image back with a wake-up for the UI.
+
+use crate::backend::{self, Backend, FrameRenderer};
+use crate::progressive::Quality;
+use crate::tf_model::LogHistogram;
+use std::sync::mpsc::{Receiver, Sender};
+use std::sync::{Arc, Condvar, Mutex};
+use std::time::Instant;
+use voxcast::camera::CameraParams;
+use voxcast::geometry::Geometry;
+use voxcast::io::OpenOptions;
+use voxcast::render::RenderParams;
+use voxcast::transfer::TransferFunction;
+use voxcast::volume::Series;
+use voxcast::{Image, RenderStats, Volume};
+
+/// Bins of the histogram sent with each volume.
+pub const HISTOGRAM_BINS: usize = 256;
+
+/// One frame to render.
+#[derive(Clone, Debug)]
+pub struct Request {
+    /// Increases with every request; replies carry it.
+    pub generation: u64,
+    /// Frame of the series (0 for a single volume).
+    pub frame: usize,
+    /// Data values mapped to 0…1.
+    pub window: [f32; 2],
+    pub tf: TransferFunction,
+    pub camera: CameraParams,
+    /// Already sized for `quality`.
+    pub params: RenderParams,
+    pub quality: Quality,
+}
+
+/// What the render thread sends back.
+#[derive(Debug)]
+pub enum Reply {
+    /// A new volume or window is in use: its histogram over the window.
+    Volume {
+        frame: usize,
+        window: [f32; 2],
+        histogram: LogHistogram,
+        /// Seconds spent loading and preparing.
+        seconds: f64,
+    },
+    /// A rendered frame.
+    Frame {
+        generation: u64,
+        frame: usize,
+        quality: Quality,
+        image: Image,
+        stats: RenderStats,
+    },
+    /// A request failed.
+    Error { generation: u64, message: String },
+}
+
+/// Where frames come from.
+pub enum Source {
+    /// One volume.
+    Single,
+    /// A series, loaded frame by frame with these options.
+    Series(Series, OpenOptions),
+}
+
+/// The one-place mailbox.
+#[derive(Default)]
+pub struct Mailbox {
+    state: Mutex<MailState>,
+    wake: Condvar,
+}
+
+#[derive(Default)]
+struct MailState {
+    pending: Option<Request>,
+    shutdown: bool,
+    busy: bool,
+}
+
+impl Mailbox {
+    /// Leaves `req` for the thread, replacing a request not yet taken.
+    pub fn put(&self, req: Request) {
+        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        s.pending = Some(req);
+        self.wake.notify_one();
+    }
+
+    /// Waits for a request; `None` once shut down.
+    pub fn take(&self) -> Option<Request> {
+        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        loop {
+            if s.shutdown {
+                return None;
+            }
+            if let Some(r) = s.pending.take() {
+                s.busy = true;
+                return Some(r);
+            }
+            s.busy = false;
+            s = self.wake.wait(s).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    /// Takes a request without waiting.
+    pub fn try_take(&self) -> Option<Request> {
+        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        s.pending.take()
+    }
+
+    /// Puts `req` back unless a newer one arrived meanwhile.
+    fn put_back(&self, req: Request) {
+        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        if s.pending.is_none() {
+            s.pending = Some(req);
+        }
+    }
+
+    /// True while a request is pending or being rendered.
+    pub fn busy(&self) -> bool {
+        let s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        s.busy || s.pending.is_some()
+    }
+
+    fn shut_down(&self) {
+        let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        s.shutdown = true;
+        self.wake.notify_all();
+    }
+}
+
+/// The render thread's handle; dropping it stops the thread (after the
+/// frame in progress).
+pub struct Worker {
+    mailbox: Arc<Mailbox>,
+    replies: Receiver<Reply>,
+}
+
+impl Worker {
+    /// Starts the thread with frame `frame` (`volume`) of `source` loaded.
+    /// `notify` is called after every reply (to wake the UI).
+    pub fn spawn(
+        backend: Backend,
+        source: Source,
+        frame: usize,
+        volume: Arc<Volume>,
+        geometry: Option<Arc<Geometry>>,
+        notify: impl Fn() + Send + 'static,
+    ) -> Worker {
+        let mailbox = Arc::new(Mailbox::default());
+        let (tx, replies) = std::sync::mpsc::channel();
+        let mb = mailbox.clone();
+        std::thread::Builder::new()
+            .name("voxcast-view render".into())
+            .spawn(move || {
+                // Leave one core to the UI thread (and a software rasteriser
+                // such as lavapipe), or dragging stutters while frames render.
+                let threads = std::thread::available_parallelism()
+                    .map_or(1, |n| n.get().saturating_sub(1).max(1));
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("voxcast-view render {i}"))
+                    .build();
+                let mut t = Thread {
+                    backend,
+                    source,
+                    frame,
+                    volume,
+                    window: None,
+                    geometry,
+                    tx,
+                    notify: Box::new(notify),
+                };
+                match pool {
+                    Ok(pool) => pool.install(|| t.run(&mb)),
+                    Err(_) => t.run(&mb),
+                }
+            })
+            .expect("spawning the render thread");
+        Worker { mailbox, replies }
+    }
+
+    /// Asks for a frame (replacing one not yet started).
+    pub fn submit(&self, req: Request) {
+        self.mailbox.put(req);
+    }
+
+    /// The next reply, if any.
+    pub fn try_recv(&self) -> Option<Reply> {
+        self.replies.try_recv().ok()
+    }
+
+    /// True while a request is pending or being rendered.
+    pub fn busy(&self) -> bool {
+        self.mailbox.busy()
+    }
+}
+
+impl Drop for Worker {
+    fn drop(&mut self) {
+        self.mailbox.shut_down();
+    }
+}
+
+struct Thread {
+    backend: Backend,
+    source: Source,
+    frame: usize,
+    volume: Arc<Volume>,
+    /// The window the current renderer was made for (`None`: none yet).
+    window: Option<[f32; 2]>,
+    geometry: Option<Arc<Geometry>>,
+    tx: Sender<Reply>,
+    notify: Box<dyn Fn() + Send>,
+}
+
+impl Thread {
+    fn send(&self, r: Reply) {
+        let _ = self.tx.send(r);
+        (self.notify)();
+    }
+
+    fn run(&mut self, mailbox: &Mailbox) {
+        // One pass of the outer loop per (volume, window): the renderer
+        // borrows the volume, and its derived structures are built once.
+        'volume: loop {
+            let Some(req) = mailbox.take() else { return };
+            if let Err(message) = self.switch(&req) {
+                self.send(Reply::Error {
+                    generation: req.generation,
+                    message,
+                });
+                continue;
+            }
+            let volume = self.volume.clone();
+            let window = req.window;
+            let mut renderer: Box<dyn FrameRenderer + '_> =
+                match backend::create(self.backend, &volume, window, self.geometry.clone()) {
+                    Ok(r) => r,
+                    Err(e) => {
+                        self.window = None;
+                        self.send(Reply::Error {
+                            generation: req.generation,
+                            message: e.to_string(),
+                        });
+                        continue;
+                    }
+                };
+            let mut next = Some(req);
+            loop {
+                let req = match next.take() {
+                    Some(r) => r,
+                    None => match mailbox.take() {
+                        Some(r) => r,
+                        None => return,
+                    },
+                };
+                if req.frame != self.frame || Some(req.window) != self.window {
+                    mailbox.put_back(req);
+                    continue 'volume;
+                }
+                let result = renderer.render(&req.tf, &req.camera, &req.params);
+                // A newer request that arrived during the render makes this
+                // frame stale only if it needs another volume; the image is
+                // still the best there is until the newer one is done.
+                match result {
+                    Ok((image, stats)) => self.send(Reply::Frame {
+                        generation: req.generation,
+                        frame: req.frame,
+                        quality: req.quality,
+                        image,
+                        stats,
+                    }),
+                    Err(e) => self.send(Reply::Error {
+                        generation: req.generation,
+                        message: e.to_string(),
+                    }),
+                }
+            }
+        }
+    }
+
+    /// Loads `req.frame` and computes the histogram for `req.window` when
+    /// either changed.
+    fn switch(&mut self, req: &Request) -> Result<(), String> {
+        if req.frame == self.frame && Some(req.window) == self.window {
+            return Ok(());
+        }
+        let start = Instant::now();
+        if req.frame != self.frame {
+            let Source::Series(series, options) = &self.source else {
+                return Err(format!("frame {}: the input is a single volume", req.frame));
+            };
+            let v = series.load(req.frame, options).map_err(|e| e.to_string())?;
+            self.volume = Arc::new(v);
+            self.frame = req.frame;
+        }
+        self.window = Some(req.window);
+        let histogram = LogHistogram::new(&self.volume, req.window, HISTOGRAM_BINS);
+        self.send(Reply::Volume {
+            frame: self.frame,
+            window: req.window,
+            histogram,
+            seconds: start.elapsed().as_secs_f64(),
+        });
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn request(generation: u64) -> Request {
+        Request {
+            generation,
+            frame: 0,
+            window: [0.0, 1.0],
+            tf: TransferFunction::preset("grayscale").unwrap(),
+            camera: CameraParams::default(),
+            params: RenderParams {
+                width: 24,
+                height: 16,
+                ..Default::default()
+            },
+            quality: Quality::Full,
+        }
+    }
+
+    #[test]
+    fn mailbox_keeps_only_the_newest_request() {
+        let m = Mailbox::default();
+        assert!(!m.busy());
+        m.put(request(1));
+        m.put(request(2));
+        m.put(request(3));
+        assert!(m.busy());
+        assert_eq!(m.try_take().unwrap().generation, 3);
+        assert!(m.try_take().is_none(), "the older ones were dropped");
+        m.put(request(4));
+        m.put_back(request(3));
+        assert_eq!(
+            m.try_take().unwrap().generation,
+            4,
+            "newer wins over put-back"
+        );
+    }
+
+    #[test]
+    fn thread_renders_and_reports_the_histogram_first() {
+        let v = voxcast::builtin::open("sphere").unwrap();
+        let w = Worker::spawn(Backend::Cpu, Source::Single, 0, Arc::new(v), None, || {});
+        let mut req = request(7);
+        req.window = [0.0, 1.0];
+        w.submit(req);
+        let mut got = Vec::new();
+        let start = Instant::now();
+        while got.len() < 2 && start.elapsed() < Duration::from_secs(60) {
+            match w.replies.recv_timeout(Duration::from_secs(60)) {
+                Ok(r) => got.push(r),
+                Err(_) => break,
+            }
+        }
+        assert!(
+            matches!(&got[0], Reply::Volume { histogram, .. } if histogram.counts.iter().sum::<u64>() > 0),
+            "{got:?}"
+        );
+        match &got[1] {
+            Reply::Frame {
+                generation, image, ..
+            } => {
+                assert_eq!(*generation, 7);
+                assert_eq!((image.width, image.height), (24, 16));
+            }
+            r => panic!("expected a frame, got {r:?}"),
+        }
+        // A frame of a single volume other than 0 is an error, not a panic.
+        let mut bad = request(8);
+        bad.frame = 3;
+        w.submit(bad);
+        let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(
+            matches!(&r, Reply::Error { generation: 8, message } if message.contains("single")),
+            "{r:?}"
+        );
+    }
+}
