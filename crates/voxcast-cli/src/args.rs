@@ -538,6 +538,14 @@ pub struct ViewArgs {
     /// Write what a scripted run measured as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Scripted use")]
     pub stats_json: Option<PathBuf>,
+    /// Which renderer draws the frames: `auto` (default) takes a hardware
+    /// GPU when there is one and the CPU otherwise (a software rasteriser such
+    /// as lavapipe is slower than the CPU renderer); `gpu` takes any Vulkan
+    /// adapter, software ones included, and fails if there is none; `cpu` is
+    /// the CPU renderer. On the GPU, methods it lacks (threshold, importance,
+    /// lod, single-scatter, path) and opaque geometry are drawn by the CPU.
+    #[arg(long, value_enum, default_value = "auto", help_heading = "Device")]
+    pub device: DeviceArg,
 }
 
 impl ViewArgs {

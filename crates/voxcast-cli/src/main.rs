@@ -240,8 +240,30 @@ fn view(a: ViewArgs) -> Result<()> {
     if !scripted && (a.save_scene.is_some() || a.stats_json.is_some()) {
         bail!("--save-scene and --stats-json belong to a scripted run: add --screenshot FILE, --exit-after-frames N or --orbit S (in the window, use the Save buttons)");
     }
+    let backend = match a.device {
+        args::DeviceArg::Cpu => voxcast_view::Backend::Cpu,
+        args::DeviceArg::Gpu => {
+            let ctx = voxcast_gpu::GpuContext::new(voxcast_gpu::DeviceChoice::Gpu)
+                .context("--device gpu")?;
+            eprintln!("view: rendering on {}", ctx.info());
+            voxcast_view::Backend::Gpu(ctx)
+        }
+        args::DeviceArg::Auto => {
+            match voxcast_gpu::GpuContext::new(voxcast_gpu::DeviceChoice::Auto) {
+                Ok(ctx) => {
+                    eprintln!("view: --device auto: rendering on {}", ctx.info());
+                    voxcast_view::Backend::Gpu(ctx)
+                }
+                Err(voxcast_gpu::GpuError::NoAdapter(why)) => {
+                    eprintln!("view: --device auto: {why}; rendering on the CPU");
+                    voxcast_view::Backend::Cpu
+                }
+                Err(e) => return Err(e).context("--device auto"),
+            }
+        }
+    };
     let options = voxcast_view::ViewOptions {
-        backend: voxcast_view::Backend::Cpu,
+        backend,
         screenshot: a.screenshot.clone(),
         exit_after_frames: a.exit_after_frames,
         save_scene: a.save_scene.clone(),

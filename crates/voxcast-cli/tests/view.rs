@@ -152,6 +152,62 @@ fn screenshot_matches_render_of_the_saved_scene() {
     assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
 }
 
+/// The GPU back end (lavapipe here) draws the view, and the screenshot still
+/// matches the CPU's `voxcast render` of the saved scene.
+#[test]
+fn gpu_backend_screenshot_matches_the_cpu_render() {
+    let Some(data) = voxcast::testdata::data_path("teapot_ct/slices") else {
+        return;
+    };
+    if !have_xvfb() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let data = data.to_string_lossy().into_owned();
+    let o = view(
+        &[
+            &data,
+            "--device",
+            "gpu",
+            "--size",
+            "200x150",
+            "--azimuth",
+            "20",
+            "--elevation",
+            "-30",
+            "--screenshot",
+            "out.png",
+            "--exit-after-frames",
+            "10",
+            "--save-scene",
+            "s.toml",
+            "--stats-json",
+            "st.json",
+        ],
+        dir.path(),
+    );
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    if !o.status.success() && stderr.contains("no GPU adapter") && !ci() {
+        eprintln!("skipping: no GPU adapter ({stderr})");
+        return;
+    }
+    assert!(
+        o.status.success(),
+        "voxcast view --device gpu failed: {stderr}"
+    );
+    assert!(
+        stderr.contains("rendering on"),
+        "names the adapter: {stderr}"
+    );
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
+            .unwrap();
+    assert_eq!(stats["backend"], "GPU", "{stats}");
+    let psnr = check_matches_render(dir.path());
+    eprintln!("GPU view vs CPU render: PSNR {psnr:.2} dB");
+    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+}
+
 #[test]
 fn series_frame_and_time_are_saved_and_reproduced() {
     let Some(smv) = voxcast::testdata::data_path("fds_room/room_smoke.smv") else {

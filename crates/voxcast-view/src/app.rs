@@ -135,7 +135,7 @@ impl ViewerApp {
             None => (Source::Single, 0),
         };
         let worker = Worker::spawn(
-            options.backend,
+            options.backend.clone(),
             source,
             frame,
             volume.clone(),
@@ -170,7 +170,7 @@ impl ViewerApp {
         };
         ViewerApp {
             params: scene.render.clone(),
-            backend: options.backend,
+            backend: options.backend.clone(),
             tf: TfModel::new(&tf),
             tf_state: TfWidgetState::default(),
             preset,

@@ -2,11 +2,12 @@
 //! an image for the viewer. One is made per volume and data window (its
 //! derived structures are built once) and then asked for frame after frame.
 //!
-//! Today there is the CPU ray caster. A GPU back end plugs in as one more
-//! [`Backend`] variant and one more arm in [`create`]: an adapter type that
-//! holds the GPU renderer made once per volume and implements
-//! [`FrameRenderer::render`] by updating the transfer function and camera
-//! and rendering.
+//! Two back ends: the CPU ray caster, and the wgpu compute ray caster of
+//! `voxcast-gpu` (the volume uploaded once per volume and window; each frame
+//! only rewrites the transfer-function table and the camera). Methods the GPU
+//! does not have (and scenes with opaque geometry) are drawn by the CPU
+//! renderer inside the GPU back end, frame by frame, so every control keeps
+//! working; the stats bar says which device drew the frame.
 
 use std::sync::Arc;
 use voxcast::camera::CameraParams;
@@ -14,20 +15,34 @@ use voxcast::geometry::Geometry;
 use voxcast::render::{RenderParams, Renderer};
 use voxcast::transfer::TransferFunction;
 use voxcast::{Image, RenderStats, Volume};
+use voxcast_gpu::{GpuContext, GpuRenderer};
 
 /// Which renderer draws the frames.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+#[derive(Clone, Default)]
 pub enum Backend {
     /// The CPU ray caster (`voxcast::render`), the same as `voxcast render`.
     #[default]
     Cpu,
+    /// The GPU ray caster (`voxcast-gpu`) on this adapter; the CPU for the
+    /// methods it does not have.
+    Gpu(Arc<GpuContext>),
+}
+
+impl std::fmt::Debug for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Backend::Cpu => f.write_str("Cpu"),
+            Backend::Gpu(ctx) => write!(f, "Gpu({})", ctx.info()),
+        }
+    }
 }
 
 impl Backend {
     /// The name shown in the stats bar.
-    pub fn name(self) -> &'static str {
+    pub fn name(&self) -> &'static str {
         match self {
             Backend::Cpu => "CPU",
+            Backend::Gpu(_) => "GPU",
         }
     }
 }
@@ -55,6 +70,52 @@ pub fn create<'v>(
         Backend::Cpu => Ok(Box::new(CpuFrames {
             renderer: Renderer::new(volume, window)?.with_geometry(geometry),
         })),
+        Backend::Gpu(ctx) => {
+            let gpu = GpuRenderer::new(ctx, volume, window)
+                .map_err(|e| voxcast::Error::invalid(e.to_string()))?;
+            let has_geometry = geometry.as_ref().is_some_and(|g| !g.is_empty());
+            Ok(Box::new(GpuFrames {
+                gpu,
+                has_geometry,
+                volume,
+                window,
+                geometry,
+                cpu: None,
+            }))
+        }
+    }
+}
+
+/// The GPU ray caster, with the CPU renderer (made the first time it is
+/// needed) for the methods and scenes the GPU does not draw.
+struct GpuFrames<'v> {
+    gpu: GpuRenderer,
+    has_geometry: bool,
+    volume: &'v Volume,
+    window: [f32; 2],
+    geometry: Option<Arc<Geometry>>,
+    cpu: Option<Renderer<'v>>,
+}
+
+impl FrameRenderer for GpuFrames<'_> {
+    fn render(
+        &mut self,
+        tf: &TransferFunction,
+        camera: &CameraParams,
+        params: &RenderParams,
+    ) -> voxcast::Result<(Image, RenderStats)> {
+        if voxcast_gpu::supports(params.method) && !self.has_geometry {
+            return self
+                .gpu
+                .render(tf, camera, params)
+                .map_err(|e| voxcast::Error::invalid(format!("GPU: {e}")));
+        }
+        if self.cpu.is_none() {
+            self.cpu =
+                Some(Renderer::new(self.volume, self.window)?.with_geometry(self.geometry.clone()));
+        }
+        let cpu = self.cpu.as_ref().expect("made just above");
+        cpu.render(tf, camera, params, &|_, _| {})
     }
 }
 

@@ -239,7 +239,8 @@ impl Thread {
             let volume = self.volume.clone();
             let window = req.window;
             let mut renderer: Box<dyn FrameRenderer + '_> =
-                match backend::create(self.backend, &volume, window, self.geometry.clone()) {
+                match backend::create(self.backend.clone(), &volume, window, self.geometry.clone())
+                {
                     Ok(r) => r,
                     Err(e) => {
                         self.window = None;
