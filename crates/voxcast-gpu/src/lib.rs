@@ -777,14 +777,7 @@ impl GpuRenderer {
             Projection::Orthographic => ((o - cam.eye).dot(cam.right), (o - cam.eye).dot(cam.up)),
         };
         let dims = self.volume.dims();
-        let axis = |d: usize| {
-            if d > 1 {
-                (0.0, (d - 1) as f32)
-            } else {
-                (-0.5, 0.5)
-            }
-        };
-        let (ax, ay, az) = (axis(dims[0]), axis(dims[1]), axis(dims[2]));
+        let (box_lo, box_hi) = self.volume.sample_box();
         let unit = self.volume.spacing().min_element();
         let inv = glam::Vec3::ONE / self.volume.spacing();
         let origin = self.volume.origin();
@@ -833,8 +826,8 @@ impl GpuRenderer {
             up: [cam.up.x, cam.up.y, cam.up.z, 0.0],
             origin_w: [origin.x, origin.y, origin.z, unit],
             inv_spacing: [inv.x, inv.y, inv.z, params.step],
-            box_lo: [ax.0, ay.0, az.0, ert],
-            box_hi: [ax.1, ay.1, az.1, params.adaptive.k_ref],
+            box_lo: [box_lo.x, box_lo.y, box_lo.z, ert],
+            box_hi: [box_hi.x, box_hi.y, box_hi.z, params.adaptive.k_ref],
             grid_max: [
                 (dims[0] - 1) as f32,
                 (dims[1] - 1) as f32,

@@ -580,16 +580,7 @@ impl GridVisitor for Job<'_> {
 impl Job<'_> {
     fn run<T: Voxel, O: Optics>(&self, grid: &Grid<'_, T>) -> (Image, RenderStats) {
         let (w, h) = (self.params.width, self.params.height);
-        let dims = self.volume.dims();
-        // A one-voxel axis gets a one-voxel-thick box so it can be seen.
-        let axis = |d: usize| {
-            if d > 1 {
-                (0.0, (d - 1) as f32)
-            } else {
-                (-0.5, 0.5)
-            }
-        };
-        let (ax, ay, az) = (axis(dims[0]), axis(dims[1]), axis(dims[2]));
+        let (box_lo, box_hi) = self.volume.sample_box();
         let p = self.params;
         let (level_lo, level_hi) = p.adaptive.levels(p.step);
         let levels: Vec<f32> = (level_lo..=level_hi)
@@ -620,8 +611,8 @@ impl Job<'_> {
         let ctx = RayCtx {
             grid,
             lut: &self.lut,
-            box_lo: Vec3::new(ax.0, ay.0, az.0),
-            box_hi: Vec3::new(ax.1, ay.1, az.1),
+            box_lo,
+            box_hi,
             origin_w: self.volume.origin(),
             inv_spacing: Vec3::ONE / self.volume.spacing(),
             step: p.step * self.unit,

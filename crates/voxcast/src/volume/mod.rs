@@ -284,6 +284,20 @@ impl Volume {
     pub fn dims(&self) -> [usize; 3] {
         self.dims
     }
+    /// The box rays are clipped to, in voxel index coordinates (low and high
+    /// corners): from the first to the last voxel centre, except that a
+    /// one-voxel axis gets a one-voxel-thick box so it can be seen.
+    pub fn sample_box(&self) -> (Vec3, Vec3) {
+        let axis = |d: usize| {
+            if d > 1 {
+                (0.0, (d - 1) as f32)
+            } else {
+                (-0.5, 0.5)
+            }
+        };
+        let [x, y, z] = self.dims.map(axis);
+        (Vec3::new(x.0, y.0, z.0), Vec3::new(x.1, y.1, z.1))
+    }
     /// Distance between voxel centres along x, y, z (world units, often mm).
     pub fn spacing(&self) -> Vec3 {
         self.spacing
