@@ -432,14 +432,7 @@ pub struct RenderArgs {
 impl RenderArgs {
     /// The scene these flags imply.
     pub fn scene(&self) -> Result<Scene> {
-        let mut scene = self.scene.base_scene()?;
-        if let Some(m) = &self.method {
-            MethodSpec::parse(m)
-                .with_context(|| format!("--method {m}"))?
-                .apply(&mut scene.render);
-        }
-        self.scene.apply(&mut scene)?;
-        Ok(scene)
+        self.scene.scene_with(self.method.as_deref(), |_| {})
     }
 }
 
@@ -552,18 +545,13 @@ impl ViewArgs {
     /// The scene these flags imply; without --size or --scene the view is
     /// 800×600.
     pub fn scene(&self) -> Result<Scene> {
-        let mut scene = self.scene.base_scene()?;
-        if self.scene.scene.is_none() {
-            scene.render.width = 800;
-            scene.render.height = 600;
-        }
-        if let Some(m) = &self.method {
-            MethodSpec::parse(m)
-                .with_context(|| format!("--method {m}"))?
-                .apply(&mut scene.render);
-        }
-        self.scene.apply(&mut scene)?;
-        Ok(scene)
+        let from_file = self.scene.scene.is_some();
+        self.scene.scene_with(self.method.as_deref(), |scene| {
+            if !from_file {
+                scene.render.width = 800;
+                scene.render.height = 600;
+            }
+        })
     }
 }
 
@@ -780,7 +768,23 @@ impl SceneArgs {
 
     /// The base scene with the flags applied.
     pub fn scene(&self) -> Result<Scene> {
+        self.scene_with(None, |_| {})
+    }
+
+    /// The base scene, then `defaults` (a command's own defaults), then
+    /// `--method` (a command's own flag), then the other flags.
+    pub fn scene_with(
+        &self,
+        method: Option<&str>,
+        defaults: impl FnOnce(&mut Scene),
+    ) -> Result<Scene> {
         let mut scene = self.base_scene()?;
+        defaults(&mut scene);
+        if let Some(m) = method {
+            MethodSpec::parse(m)
+                .with_context(|| format!("--method {m}"))?
+                .apply(&mut scene.render);
+        }
         self.apply(&mut scene)?;
         Ok(scene)
     }
