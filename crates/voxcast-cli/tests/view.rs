@@ -107,39 +107,52 @@ fn check_matches_render(dir: &Path) -> f64 {
     voxcast::metrics::psnr(&shot, &render).unwrap()
 }
 
-#[test]
-fn screenshot_matches_render_of_the_saved_scene() {
-    let Some(data) = voxcast::testdata::data_path("teapot_ct/slices") else {
-        return;
-    };
+/// `voxcast view DATA ARGS --screenshot out.png --exit-after-frames FRAMES
+/// --save-scene s.toml` in a new temporary folder; `None` (a skip) where the
+/// data or `xvfb-run` is missing.
+fn scripted_view(data: &str, args: &[&str], frames: &str) -> Option<(tempfile::TempDir, Output)> {
+    let data = voxcast::testdata::data_path(data)?;
     if !have_xvfb() {
-        return;
+        return None;
     }
     let dir = tempfile::tempdir().unwrap();
     let data = data.to_string_lossy().into_owned();
-    let o = view(
-        &[
-            &data,
-            "--size",
-            "400x300",
-            "--azimuth",
-            "35",
-            "--elevation",
-            "25",
-            "--screenshot",
-            "out.png",
-            "--exit-after-frames",
-            "30",
-            "--save-scene",
-            "s.toml",
-        ],
-        dir.path(),
-    );
+    let mut all = vec![data.as_str()];
+    all.extend_from_slice(args);
+    all.extend_from_slice(&[
+        "--screenshot",
+        "out.png",
+        "--exit-after-frames",
+        frames,
+        "--save-scene",
+        "s.toml",
+    ]);
+    let o = view(&all, dir.path());
+    Some((dir, o))
+}
+
+fn assert_ran(o: &Output) {
     assert!(
         o.status.success(),
         "voxcast view failed: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+}
+
+/// The screenshot matches `voxcast render` of the saved scene at ≥ 35 dB.
+fn assert_matches_render(dir: &Path, what: &str) {
+    let psnr = check_matches_render(dir);
+    eprintln!("{what}: PSNR {psnr:.2} dB");
+    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+}
+
+#[test]
+fn screenshot_matches_render_of_the_saved_scene() {
+    let args = ["--size", "400x300", "--azimuth", "35", "--elevation", "25"];
+    let Some((dir, o)) = scripted_view("teapot_ct/slices", &args, "30") else {
+        return;
+    };
+    assert_ran(&o);
     let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
     assert_eq!((scene.render.width, scene.render.height), (400, 300));
     assert_eq!((scene.camera.azimuth, scene.camera.elevation), (35.0, 25.0));
@@ -147,54 +160,34 @@ fn screenshot_matches_render_of_the_saved_scene() {
         scene.transfer.map.is_some(),
         "the edited map is written inline"
     );
-    let psnr = check_matches_render(dir.path());
-    eprintln!("view vs render: PSNR {psnr:.2} dB");
-    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+    assert_matches_render(dir.path(), "view vs render");
 }
 
 /// The GPU back end (lavapipe here) draws the view, and the screenshot still
 /// matches the CPU's `voxcast render` of the saved scene.
 #[test]
 fn gpu_backend_screenshot_matches_the_cpu_render() {
-    let Some(data) = voxcast::testdata::data_path("teapot_ct/slices") else {
+    let args = [
+        "--device",
+        "gpu",
+        "--size",
+        "200x150",
+        "--azimuth",
+        "20",
+        "--elevation",
+        "-30",
+        "--stats-json",
+        "st.json",
+    ];
+    let Some((dir, o)) = scripted_view("teapot_ct/slices", &args, "10") else {
         return;
     };
-    if !have_xvfb() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let data = data.to_string_lossy().into_owned();
-    let o = view(
-        &[
-            &data,
-            "--device",
-            "gpu",
-            "--size",
-            "200x150",
-            "--azimuth",
-            "20",
-            "--elevation",
-            "-30",
-            "--screenshot",
-            "out.png",
-            "--exit-after-frames",
-            "10",
-            "--save-scene",
-            "s.toml",
-            "--stats-json",
-            "st.json",
-        ],
-        dir.path(),
-    );
     let stderr = String::from_utf8_lossy(&o.stderr);
     if !o.status.success() && stderr.contains("no GPU adapter") && !ci() {
         eprintln!("skipping: no GPU adapter ({stderr})");
         return;
     }
-    assert!(
-        o.status.success(),
-        "voxcast view --device gpu failed: {stderr}"
-    );
+    assert_ran(&o);
     assert!(
         stderr.contains("rendering on"),
         "names the adapter: {stderr}"
@@ -203,52 +196,29 @@ fn gpu_backend_screenshot_matches_the_cpu_render() {
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
             .unwrap();
     assert_eq!(stats["backend"], "GPU", "{stats}");
-    let psnr = check_matches_render(dir.path());
-    eprintln!("GPU view vs CPU render: PSNR {psnr:.2} dB");
-    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+    assert_matches_render(dir.path(), "GPU view vs CPU render");
 }
 
 #[test]
 fn series_frame_and_time_are_saved_and_reproduced() {
-    let Some(smv) = voxcast::testdata::data_path("fds_room/room_smoke.smv") else {
+    let args = [
+        "--time",
+        "30",
+        "--size",
+        "320x240",
+        "--azimuth",
+        "-30",
+        "--elevation",
+        "30",
+    ];
+    let Some((dir, o)) = scripted_view("fds_room/room_smoke.smv", &args, "5") else {
         return;
     };
-    if !have_xvfb() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let smv = smv.to_string_lossy().into_owned();
-    let o = view(
-        &[
-            &smv,
-            "--time",
-            "30",
-            "--size",
-            "320x240",
-            "--azimuth",
-            "-30",
-            "--elevation",
-            "30",
-            "--screenshot",
-            "out.png",
-            "--exit-after-frames",
-            "5",
-            "--save-scene",
-            "s.toml",
-        ],
-        dir.path(),
-    );
-    assert!(
-        o.status.success(),
-        "voxcast view failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert_ran(&o);
     let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
     let t = scene.input.options.time.expect("the frame's time is saved");
     assert!((t - 30.0).abs() < 0.5, "time {t}");
-    let psnr = check_matches_render(dir.path());
-    eprintln!("series view vs render: PSNR {psnr:.2} dB");
-    assert!(psnr >= 35.0, "PSNR {psnr:.2} dB < 35 dB");
+    assert_matches_render(dir.path(), "series view vs render");
 }
 
 #[test]
