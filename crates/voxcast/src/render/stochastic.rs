@@ -261,7 +261,7 @@ pub(super) const MAX_LEVEL: u8 = 5;
 /// Exponent of the `importance` pdf's extinction term: density
 /// `∝ σ_max^GAMMA` (1 would be proportional to the extinction bound; on the
 /// teapot and the lung CT 0.35 gave the best time to quality, see
-/// `docs/README-mc.md`).
+/// the sweep of the exponents in the README, "Time to quality and equal time").
 pub(super) const GAMMA: f32 = 0.35;
 /// Exponent of its transmittance term: density `∝ T_max^BETA`, with
 /// `T_max = exp(−∫σ_min)` the most light that can reach a block.
