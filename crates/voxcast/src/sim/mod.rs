@@ -45,8 +45,12 @@ pub struct FrameStats {
     pub mass: f64,
     pub injected: f64,
     pub outflow: f64,
-    /// Density advection sub-steps over the frame's steps.
+    /// Density advection sub-steps of the fastest rows over the frame's
+    /// steps (what every row took before local sub-stepping).
     pub substeps: usize,
+    /// Density sub-steps computed per grid row, averaged over the rows,
+    /// over the frame's steps ([`StepStats::row_substeps`]).
+    pub row_substeps: f64,
     /// Wall time per phase over the frame's steps (ms): density, temperature,
     /// velocity advection, forces, pressure projection.
     pub phase_ms: [f64; 5],
@@ -97,6 +101,7 @@ pub fn simulate_smoke(
             st.cg_iterations += s.solve.iterations;
             st.relative_residual = st.relative_residual.max(s.solve.relative_residual);
             st.substeps += s.substeps;
+            st.row_substeps += s.row_substeps;
             for (a, b) in st.phase_ms.iter_mut().zip(s.phase_ms) {
                 *a += b;
             }
