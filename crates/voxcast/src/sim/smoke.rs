@@ -1126,6 +1126,133 @@ mod tests {
     }
 
     #[test]
+    fn ladder_counts_nest_and_cover_the_need() {
+        for need in 1..=MAX_SUBSTEPS {
+            let l = Ladder::new(need);
+            let fine = l.fine();
+            // At most 1.5× the need (2ᵃ and 3·2ᵃ⁻¹ alternate), never less.
+            assert!(fine >= need && 2 * fine <= 3 * need, "{need}: {l:?}");
+            assert_eq!(l.count[0], 1);
+            for a in 1..l.levels {
+                assert_eq!(l.count[a] % l.count[a - 1], 0, "{l:?}");
+            }
+            for n in 1..=need {
+                let lv = l.level_for(n);
+                assert!(l.count[lv] as usize >= n);
+                assert!(lv == 0 || (l.count[lv - 1] as usize) < n);
+            }
+            // A level's sub-steps start at every multiple of its stride, and
+            // every finer level's start there too.
+            for s in 0..=fine {
+                let first = l.first_active(s);
+                for a in 0..l.levels {
+                    let stride = fine / l.count[a] as usize;
+                    assert_eq!(s % stride == 0, a >= first, "{l:?} s {s} level {a}");
+                }
+            }
+        }
+    }
+
+    /// The small room with a door and a hotter, faster fire, so that rows
+    /// need different numbers of density sub-steps.
+    fn fast(door: bool) -> SmokeScene {
+        let mut s = small(door);
+        s.source.temperature = 80.0;
+        s.dt = 0.15;
+        s
+    }
+
+    fn run(scene: &SmokeScene, steps: usize, local: bool, skip: bool) -> (Smoke, Vec<StepStats>) {
+        let mut s = Smoke::new(scene).unwrap();
+        s.local_substeps = local;
+        s.skip_empty = skip;
+        let stats = (0..steps).map(|_| s.step()).collect();
+        (s, stats)
+    }
+
+    #[test]
+    fn local_substeps_conserve_mass_and_follow_global_substeps() {
+        let scene = fast(true);
+        let (a, sa) = run(&scene, 60, true, true);
+        let (b, sb) = run(&scene, 60, false, true);
+        // The rows took different counts, and fewer than all at the fastest.
+        assert!(
+            sa.iter().any(|s| s.substeps >= 3),
+            "the test scene must need sub-steps: {:?}",
+            sa.iter().map(|s| s.substeps).collect::<Vec<_>>()
+        );
+        let rows = |st: &[StepStats]| st.iter().map(|s| s.row_substeps).sum::<f64>();
+        assert!(
+            rows(&sa) < 0.7 * rows(&sb),
+            "local {} vs global {} row sub-steps",
+            rows(&sa),
+            rows(&sb)
+        );
+        for s in [&a, &b] {
+            let expect = s.injected() - s.outflow();
+            assert!(s.outflow() > 0.0);
+            let rel = (s.mass() - expect).abs() / expect;
+            assert!(
+                rel < 1e-4,
+                "mass {} vs injected − outflow {expect}",
+                s.mass()
+            );
+            for (c, &f) in s.flags().iter().enumerate() {
+                assert!(s.density()[c] >= 0.0);
+                if f != FLUID {
+                    assert_eq!(s.density()[c], 0.0);
+                }
+            }
+        }
+        // The same smoke, up to the time stepping's error.
+        assert_eq!(a.injected(), b.injected());
+        let (da, db) = (a.density(), b.density());
+        let l1: f64 = da.iter().zip(db).map(|(&x, &y)| (x - y).abs() as f64).sum();
+        let total: f64 = db.iter().map(|&y| y as f64).sum();
+        assert!(l1 < 0.1 * total, "L1 difference {l1} of {total}");
+        assert!((centroid_z(&a) - centroid_z(&b)).abs() < 0.5);
+    }
+
+    #[test]
+    fn skipping_rows_without_smoke_changes_nothing() {
+        let scene = fast(true);
+        let (a, sa) = run(&scene, 40, true, true);
+        let (b, sb) = run(&scene, 40, true, false);
+        // Early on most rows hold no smoke and are skipped.
+        assert!(
+            sa[2].row_substeps < 0.5 * sb[2].row_substeps,
+            "{:?} {:?}",
+            sa[2],
+            sb[2]
+        );
+        // Equal cell by cell (a skipped flux is an exact zero).
+        assert!(a.density() == b.density());
+        assert_eq!(a.outflow(), b.outflow());
+        // Rows beyond the smoke's reach were skipped and hold exactly 0.
+        let (c, _) = run(&scene, 2, true, true);
+        let [nx, ny, _] = c.dims();
+        let rows = c.density().chunks(nx);
+        let empty = rows.filter(|r| r.iter().all(|&d| d == 0.0)).count();
+        assert!(empty > ny, "{empty} empty rows");
+    }
+
+    #[test]
+    fn same_frames_on_any_number_of_threads() {
+        let scene = fast(true);
+        let on = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| run(&scene, 30, true, true).0)
+        };
+        let (a, b) = (on(1), on(3));
+        let bits = |s: &Smoke| s.density().iter().map(|d| d.to_bits()).collect::<Vec<_>>();
+        assert!(bits(&a) == bits(&b));
+        assert_eq!(a.outflow().to_bits(), b.outflow().to_bits());
+    }
+
+    #[test]
     fn smoke_rises_pools_under_the_ceiling_and_is_reproducible() {
         let scene = small(false);
         let mut a = Smoke::new(&scene).unwrap();
