@@ -453,6 +453,11 @@ impl Lut {
         self.sigma[i]
     }
 
+    /// Extinction per unit length of every entry.
+    pub fn sigmas(&self) -> &[f32; LUT_SIZE] {
+        &self.sigma
+    }
+
     /// The opacity of every entry for a step of `ratio` unit lengths, for
     /// marchers that take steps of several fixed lengths.
     pub fn alphas(&self, ratio: f32) -> Box<[f32; LUT_SIZE]> {

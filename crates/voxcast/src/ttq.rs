@@ -60,6 +60,63 @@ pub struct TtqResult {
     /// Equal time: of the settings tried, the one with the highest PSNR
     /// that rendered within the time budget.
     pub equal_time: Option<TtqPoint>,
+    /// The target met exactly: interpolated between the two settings that
+    /// bracket it (see [`TtqAtTarget`]).
+    pub at_target: Option<TtqAtTarget>,
+    /// Speed-up over `uniform` at exactly the target PSNR (uniform's
+    /// interpolated time / this method's).
+    pub speedup_at_target: Option<f64>,
+}
+
+/// Equal PSNR without the ladder's rounding: the ladder moves in factors of
+/// 2, so the setting a method lands on can overshoot the target by several
+/// dB (uniform on the teapot: 53.1 dB for a 50-dB target), which favours
+/// whichever method happens to land close to it. Of the settings tried,
+/// ordered by samples, take the frontier (each more PSNR than every cheaper
+/// one) and the two neighbours on it with `below.psnr < target ≤
+/// above.psnr`; time both (`repeat` renders, median), and interpolate the
+/// log of the samples and of the time linearly in PSNR (dB is linear in the
+/// log of the step for a power-law error) to the target.
+#[derive(Clone, Debug, Serialize)]
+pub struct TtqAtTarget {
+    /// The frontier setting just below the target (its median time).
+    pub below: TtqPoint,
+    /// The frontier setting just above it (its median time).
+    pub above: TtqPoint,
+    /// Samples and seconds at exactly the target.
+    pub samples: f64,
+    pub seconds: f64,
+}
+
+/// The frontier neighbours of `points` that bracket `target`: by samples,
+/// each more PSNR than every cheaper setting.
+pub fn bracket(points: &[TtqPoint], target: f64) -> Option<(TtqPoint, TtqPoint)> {
+    let mut sorted: Vec<&TtqPoint> = points.iter().collect();
+    sorted.sort_by(|a, b| {
+        a.samples
+            .cmp(&b.samples)
+            .then(b.psnr_db.total_cmp(&a.psnr_db))
+    });
+    let mut frontier: Vec<&TtqPoint> = Vec::new();
+    for p in sorted {
+        if frontier.last().is_none_or(|l| p.psnr_db > l.psnr_db) {
+            frontier.push(p);
+        }
+    }
+    frontier
+        .windows(2)
+        .find(|w| w[0].psnr_db < target && target <= w[1].psnr_db)
+        .map(|w| (w[0].clone(), w[1].clone()))
+}
+
+/// Log-linear interpolation in PSNR between `below` and `above` to `target`.
+pub fn interpolate(below: &TtqPoint, above: &TtqPoint, target: f64) -> (f64, f64) {
+    let f = (target - below.psnr_db) / (above.psnr_db - below.psnr_db);
+    let lerp_log = |a: f64, b: f64| (a.ln() + f * (b.ln() - a.ln())).exp();
+    (
+        lerp_log(below.samples as f64, above.samples as f64),
+        lerp_log(below.seconds, above.seconds),
+    )
 }
 
 /// The report.
@@ -182,12 +239,48 @@ pub fn run(
             }
             None => None,
         };
+        let timed = |pt: &TtqPoint| -> Result<TtqPoint> {
+            if let Some(b) = best
+                .as_ref()
+                .filter(|b| b.step == pt.step && b.spp == pt.spp)
+            {
+                return Ok(b.clone());
+            }
+            let mut p = base.clone();
+            spec.apply(&mut p);
+            p.step = pt.step;
+            p.spp = pt.spp;
+            progress(&format!("{spec} timing step {} spp {}", pt.step, pt.spp));
+            let mut times = Vec::new();
+            for _ in 0..config.repeat.max(1) {
+                times.push(render(&p)?.1.seconds);
+            }
+            Ok(TtqPoint {
+                seconds: median(&times),
+                ..pt.clone()
+            })
+        };
+        let at_target = match bracket(&points, config.target_psnr) {
+            Some((lo, hi)) => {
+                let (below, above) = (timed(&lo)?, timed(&hi)?);
+                let (samples, seconds) = interpolate(&below, &above, config.target_psnr);
+                Some(TtqAtTarget {
+                    below,
+                    above,
+                    samples,
+                    seconds,
+                })
+            }
+            None => None,
+        };
         results.push(TtqResult {
             method: spec.to_string(),
             points,
             best,
             speedup: None,
             equal_time: None,
+            at_target,
+            speedup_at_target: None,
         });
     }
     let uniform = results
@@ -195,7 +288,15 @@ pub fn run(
         .find(|r| r.method == "uniform")
         .and_then(|r| r.best.as_ref().map(|b| b.seconds));
     let budget = config.time_budget.or(uniform);
+    let uniform_at_target = results
+        .iter()
+        .find(|r| r.method == "uniform")
+        .and_then(|r| r.at_target.as_ref().map(|a| a.seconds));
     for r in &mut results {
+        r.speedup_at_target = match (uniform_at_target, &r.at_target) {
+            (Some(u), Some(a)) if a.seconds > 0.0 => Some(u / a.seconds),
+            _ => None,
+        };
         r.speedup = match (uniform, &r.best) {
             (Some(u), Some(b)) if b.seconds > 0.0 => Some(u / b.seconds),
             _ => None,
@@ -259,6 +360,34 @@ pub fn markdown(r: &TtqReport) -> String {
             }
         }
     }
+    if r.results.iter().any(|m| m.at_target.is_some()) {
+        s += &format!(
+            "\nEqual PSNR, interpolated: samples and time at exactly {:.1} dB, log-linear in PSNR between the two settings that bracket it (each timed, median):\n\n| method | between | samples | time (s) | speed-up vs uniform |\n|---|---|---:|---:|---:|\n",
+            r.target_psnr_db
+        );
+        for m in &r.results {
+            s += &match &m.at_target {
+                Some(a) => format!(
+                    "| {} | step {} spp {} ({:.2} dB, {:.4} s) – step {} spp {} ({:.2} dB, {:.4} s) | {:.0} | {:.4} | {} |\n",
+                    m.method,
+                    a.below.step,
+                    a.below.spp,
+                    a.below.psnr_db,
+                    a.below.seconds,
+                    a.above.step,
+                    a.above.spp,
+                    a.above.psnr_db,
+                    a.above.seconds,
+                    a.samples,
+                    a.seconds,
+                    m.speedup_at_target
+                        .map(|x| format!("{x:.2}×"))
+                        .unwrap_or_else(|| "—".into())
+                ),
+                None => format!("| {} | no bracketing settings | — | — | — |\n", m.method),
+            };
+        }
+    }
     if let Some(t) = r.time_budget_s {
         s += &format!(
             "\nEqual time: the best PSNR each method reached within {t:.4} s (the settings above, each rendered once):\n\n| method | setting | time (s) | PSNR (dB) |\n|---|---|---:|---:|\n"
@@ -274,4 +403,51 @@ pub fn markdown(r: &TtqReport) -> String {
         }
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn pt(step: f32, samples: u64, seconds: f64, psnr_db: f64) -> TtqPoint {
+        TtqPoint {
+            step,
+            spp: 1,
+            seconds,
+            samples,
+            psnr_db,
+        }
+    }
+
+    #[test]
+    fn bracket_takes_the_frontier_neighbours_of_the_target() {
+        let points = [
+            pt(2.0, 100, 1.0, 40.0),
+            // More samples but no better: off the frontier.
+            pt(2.0, 250, 2.5, 39.0),
+            pt(1.0, 200, 2.0, 46.0),
+            pt(0.5, 400, 4.0, 52.0),
+            pt(0.25, 800, 8.0, 56.0),
+        ];
+        let (lo, hi) = bracket(&points, 50.0).unwrap();
+        assert_eq!((lo.samples, hi.samples), (200, 400));
+        // Exactly on a setting: that setting is the upper end.
+        let (lo, hi) = bracket(&points, 52.0).unwrap();
+        assert_eq!((lo.samples, hi.samples), (200, 400));
+        // Out of reach, or reached by the cheapest: no bracket.
+        assert!(bracket(&points, 60.0).is_none());
+        assert!(bracket(&points, 30.0).is_none());
+    }
+
+    #[test]
+    fn interpolation_is_log_linear_in_psnr() {
+        let (a, b) = (pt(1.0, 200, 2.0, 46.0), pt(0.5, 800, 8.0, 52.0));
+        let (s, t) = interpolate(&a, &b, 49.0);
+        assert!(
+            (s - 400.0).abs() < 1e-6 && (t - 4.0).abs() < 1e-9,
+            "{s} {t}"
+        );
+        let (s, t) = interpolate(&a, &b, 52.0);
+        assert!((s - 800.0).abs() < 1e-6 && (t - 8.0).abs() < 1e-9);
+    }
 }

@@ -9,8 +9,9 @@
 //! whose transfer-function opacity is zero over that range contributes
 //! exactly nothing: skipping it changes the speed, not the pixels.
 
-use crate::transfer::TransferFunction;
+use crate::transfer::{Lut, TransferFunction, LUT_SIZE};
 use crate::volume::{Grid, GridVisitor, Voxel};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Default block edge in cells.
@@ -32,6 +33,38 @@ impl BlockGrid {
     #[inline(always)]
     pub fn index(&self, b: [usize; 3]) -> usize {
         b[0] + self.counts[0] * (b[1] + self.counts[1] * b[2])
+    }
+
+    /// The box (voxel coordinates) around the blocks that are not `empty`,
+    /// within `[lo, hi]` (the ray-clipping box; a face of it on the grid's
+    /// edge is kept, so nothing inside that box is lost); an empty box
+    /// (`lo > hi`) when every block is empty. O(blocks).
+    pub fn occupied_box(&self, empty: &[bool], lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
+        let [cx, cy, cz] = self.counts;
+        let (mut mn, mut mx) = ([usize::MAX; 3], [0usize; 3]);
+        for (i, _) in empty.iter().enumerate().filter(|(_, e)| !**e) {
+            let c = [i % cx, i / cx % cy, i / (cx * cy)];
+            for a in 0..3 {
+                mn[a] = mn[a].min(c[a]);
+                mx[a] = mx[a].max(c[a]);
+            }
+        }
+        if mn[0] == usize::MAX {
+            return (Vec3::ONE, Vec3::ZERO);
+        }
+        let b = self.size as f32;
+        let n = [cx, cy, cz];
+        let face = |a: usize| {
+            let l = if mn[a] == 0 { lo[a] } else { mn[a] as f32 * b };
+            let h = if mx[a] + 1 == n[a] {
+                hi[a]
+            } else {
+                (mx[a] + 1) as f32 * b
+            };
+            (l.max(lo[a]), h.min(hi[a]))
+        };
+        let (x, y, z) = (face(0), face(1), face(2));
+        (Vec3::new(x.0, y.0, z.0), Vec3::new(x.1, y.1, z.1))
     }
 
     /// For each block, whether `tf` makes all of it transparent: O(blocks).
@@ -102,6 +135,42 @@ impl GridVisitor for BuildBlocks {
             counts: block_counts(dims, b),
             range,
         }
+    }
+}
+
+/// The mean extinction per unit length over each block's voxels, `σ` read
+/// from `sigma` (a [`crate::transfer::Lut`]'s table) at each voxel's value
+/// (0 below the transfer function's domain): what a ray crossing the block
+/// meets on average (for the `importance` pdf).
+pub struct BuildMeanSigma<'a> {
+    pub size: usize,
+    pub sigma: &'a [f32; LUT_SIZE],
+}
+
+impl GridVisitor for BuildMeanSigma<'_> {
+    type Output = Vec<f32>;
+    fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Vec<f32> {
+        let b = self.size.max(1);
+        let dims = grid.dims();
+        let (scale, offset) = grid.scale_offset();
+        per_block(dims, b, |lo, hi| {
+            let mut sum = 0.0f64;
+            let mut count = 0usize;
+            for k in lo[2]..=hi[2] {
+                for j in lo[1]..=hi[1] {
+                    let row = &grid.row(j, k)[lo[0]..=hi[0]];
+                    let mut s = 0.0f32;
+                    for v in row {
+                        if let Some(i) = Lut::index(v.to_f32() * scale + offset) {
+                            s += self.sigma[i];
+                        }
+                    }
+                    sum += s as f64;
+                    count += row.len();
+                }
+            }
+            (sum / count.max(1) as f64) as f32
+        })
     }
 }
 

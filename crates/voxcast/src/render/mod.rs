@@ -398,6 +398,44 @@ struct Derived {
     max_gradient: std::sync::OnceLock<Vec<f32>>,
     /// The S3 octree over the blocks (for `lod`, built on first use).
     octree: std::sync::OnceLock<octree::Octree>,
+    /// The `importance` pdf of the last transfer function it was asked for.
+    pdf: std::sync::Mutex<Option<(TransferFunction, Arc<Vec<stochastic::PdfBlock>>)>>,
+}
+
+impl Derived {
+    /// The `importance` pdf per block for `tf` (built once per transfer
+    /// function: it reads every voxel for the blocks' mean extinction).
+    fn pdf(
+        &self,
+        volume: &Volume,
+        window: [f32; 2],
+        tf: &TransferFunction,
+        unit: f32,
+    ) -> Arc<Vec<stochastic::PdfBlock>> {
+        let mut cache = self.pdf.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((t, p)) = cache.as_ref() {
+            if t == tf {
+                return p.clone();
+            }
+        }
+        let lut = Lut::new(tf, 1.0);
+        let mean = volume.visit(
+            window[0],
+            window[1],
+            blocks::BuildMeanSigma {
+                size: self.blocks.size,
+                sigma: lut.sigmas(),
+            },
+        );
+        let p = Arc::new(stochastic::pdf_blocks(
+            &self.blocks.range,
+            tf,
+            1.0 / unit,
+            &mean,
+        ));
+        *cache = Some((tf.clone(), p.clone()));
+        p
+    }
 }
 
 impl<'v> Renderer<'v> {
@@ -458,6 +496,7 @@ impl<'v> Renderer<'v> {
             blocks,
             max_gradient: std::sync::OnceLock::new(),
             octree: std::sync::OnceLock::new(),
+            pdf: std::sync::Mutex::new(None),
         });
         list.push((size, d.clone()));
         d
@@ -512,9 +551,9 @@ impl<'v> Renderer<'v> {
             return Ok((image, stats));
         }
         let pdf = if params.method == Method::Importance {
-            stochastic::pdf_blocks(&derived.blocks.range, tf, 1.0 / unit)
+            derived.pdf(volume, self.window, tf, unit)
         } else {
-            Vec::new()
+            Arc::new(Vec::new())
         };
         let tree = (params.method == Method::Lod).then(|| {
             derived.octree.get_or_init(|| {
@@ -528,7 +567,7 @@ impl<'v> Renderer<'v> {
             })
         });
         let job = Job {
-            pdf: &pdf,
+            pdf: pdf.as_slice(),
             volume,
             lut: Lut::new(tf, params.step),
             cam,
@@ -627,6 +666,9 @@ impl Job<'_> {
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
             empty: &self.empty,
+            occupied: p
+                .skip_empty
+                .then(|| self.blocks.occupied_box(&self.empty, box_lo, box_hi)),
             max_gradient: self.max_gradient,
             level_lo,
             level_hi,

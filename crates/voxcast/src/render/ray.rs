@@ -38,6 +38,10 @@ pub(super) struct RayCtx<'a, T> {
     pub block_size: usize,
     pub block_counts: [usize; 3],
     pub empty: &'a [bool],
+    /// With empty-space skipping: the box (voxel coordinates) around the
+    /// blocks that are not empty, outside which a ray has nothing to march;
+    /// `None` without skipping.
+    pub occupied: Option<(Vec3, Vec3)>,
     pub max_gradient: &'a [f32],
     /// Adaptive: allowed power-of-two levels, `k_ref`, and per level
     /// (index `j − level_lo`) the step in world units and the step opacity
@@ -178,8 +182,8 @@ pub(super) fn trace<T: Voxel, O: Optics>(
     let surface_rgb = |stats: &mut RenderStats| {
         hit.map(|(s, h)| super::surface::shade(ctx, &s, origin, dir, &h, &mut stats.interpolations))
     };
-    let Some((t_in, mut t_out)) =
-        super::march::intersect_box(o, Vec3::ONE / d, ctx.box_lo, ctx.box_hi)
+    let inv_d = Vec3::ONE / d;
+    let Some((t_in, mut t_out)) = super::march::intersect_box(o, inv_d, ctx.box_lo, ctx.box_hi)
     else {
         return surface_rgb(stats).map_or(Vec4::ZERO, |c| c.extend(1.0));
     };
@@ -205,15 +209,31 @@ pub(super) fn trace<T: Voxel, O: Optics>(
         back: ctx.back_to_front.then_some(scratch),
     };
     let mut n = Counters::default();
-    let walker = BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts);
+    // The stretch of the ray that meets blocks that are not empty: the block
+    // walk starts and ends there (sample positions still follow from `t_in`,
+    // so the picture does not change, only the empty blocks walked).
+    let walk = match ctx.occupied {
+        Some((lo, hi)) => super::march::intersect_box(o, inv_d, lo, hi)
+            .map(|(a, b)| (a.max(t_in), b.min(t_out)))
+            .filter(|(a, b)| a < b),
+        None => Some((t_in, t_out)),
+    };
     let terminated = if let (Method::Lod, Some(lod)) = (ctx.method, ctx.lod) {
         super::lod::march_lod::<T, O>(ctx, lod, o, d, -dir, t0, t_in, t_out, &mut acc, &mut n)
-    } else if ctx.method == Method::Threshold {
-        march_threshold::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
-    } else if ctx.method.is_monte_carlo() {
-        super::stochastic::march::<T, O>(ctx, o, d, -dir, t_in, t_out, pixel, &mut acc, &mut n)
+    } else if let Some(walk) = walk {
+        let walker = BlockWalker::new(o, d, walk.0, t_out, ctx.block_size, ctx.block_counts);
+        if ctx.method == Method::Threshold {
+            march_threshold::<T, O>(ctx, o, d, -dir, t0, t_out, walk.1, walker, &mut acc, &mut n)
+        } else if ctx.method.is_monte_carlo() {
+            super::stochastic::march::<T, O>(
+                ctx, o, d, -dir, t_in, t_out, walk, pixel, &mut acc, &mut n,
+            )
+        } else {
+            march_blocks::<T, O>(ctx, o, d, -dir, t0, t_out, walk.1, walker, &mut acc, &mut n)
+        }
     } else {
-        march_blocks::<T, O>(ctx, o, d, -dir, t0, t_out, walker, &mut acc, &mut n)
+        // Every block on the ray is empty (and skipped).
+        false
     };
     stats.samples += n.samples;
     stats.interpolations += n.interpolations;
@@ -224,7 +244,8 @@ pub(super) fn trace<T: Voxel, O: Optics>(
 }
 
 /// Uniform and adaptive marching: per block a step `s = step·2^j` (j = 0 for
-/// uniform), samples at `t₀ + n·s` inside the block.
+/// uniform), samples at `t₀ + n·s` inside the block. Past `t_stop` every
+/// block is empty: the walk ends there once no sample waits for its stretch.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn march_blocks<T: Voxel, O: Optics>(
@@ -234,6 +255,7 @@ fn march_blocks<T: Voxel, O: Optics>(
     view: Vec3,
     t0: f32,
     t_out: f32,
+    t_stop: f32,
     walker: BlockWalker,
     acc: &mut Acc<'_>,
     n: &mut Counters,
@@ -246,6 +268,9 @@ fn march_blocks<T: Voxel, O: Optics>(
         alpha > 0.0 && acc.add::<O>(p.rgb, alpha)
     };
     for (ta, tb, b) in walker {
+        if ta >= t_stop && pending.is_none() {
+            break;
+        }
         let empty = ctx.empty[b];
         let j = match ctx.method {
             Method::Adaptive | Method::AdaptiveMax if empty => ctx.level_hi,
@@ -324,7 +349,8 @@ fn level<T>(ctx: &RayCtx<'_, T>, k: f32, t_out: f32, tm: f32) -> i32 {
 /// Threshold-range marching (Zeng et al. 2018): from each sample the step
 /// to the next depends on the range its value falls into. Positions follow
 /// from the samples before them, so here skipping an empty block restarts
-/// the march on the base grid `t₀ + n·step` at the next non-empty block.
+/// the march on the base grid `t₀ + n·step` at the next non-empty block
+/// (there is none past `t_stop`).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn march_threshold<T: Voxel, O: Optics>(
@@ -334,6 +360,7 @@ fn march_threshold<T: Voxel, O: Optics>(
     view: Vec3,
     t0: f32,
     t_out: f32,
+    t_stop: f32,
     walker: BlockWalker,
     acc: &mut Acc<'_>,
     n: &mut Counters,
@@ -345,6 +372,9 @@ fn march_threshold<T: Voxel, O: Optics>(
     let mut head_rgb: Option<Vec3> = None;
     let mut count = 0u32;
     for (ta, tb, b) in walker {
+        if ta >= t_stop {
+            break;
+        }
         if ctx.skip_empty && ctx.empty[b] {
             continue;
         }

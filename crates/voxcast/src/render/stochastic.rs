@@ -12,11 +12,12 @@
 //! * `mc`: `n = ⌈L/s⌉` independent uniform positions on the ray's whole
 //!   `[t_in, t_out]` (S1 eqs. 5–6); `Δ = L/n`.
 //! * `importance`: positions from a pdf that is constant on each block the
-//!   ray crosses, `∝ σ_max^γ · T_max^β` (γ = 0.35, β = 1): `σ_max` the
+//!   ray crosses, `∝ σ_max^γ · T̂^β` (γ = 0.35, β = 0.3): `σ_max` the
 //!   largest extinction the transfer function gives the block's values (0
-//!   in transparent blocks, which get no samples), `T_max = exp(−∫σ_min)`
-//!   the most light that can reach the block (from the smallest extinction
-//!   of the blocks before it), rounded to powers of two. The positions are
+//!   in transparent blocks, which get no samples), `T̂ = exp(−∫σ̄)` the
+//!   light expected to reach the block, from the mean extinction `σ̄` of
+//!   the blocks before it (precomputed per block once per transfer
+//!   function), rounded to powers of two. The positions are
 //!   *stratified* in CDF space — one random offset, equally spaced CDF
 //!   values mapped through the inverse CDF — which makes `importance` a
 //!   uniform march whose step `step·2^j` varies from block to block;
@@ -85,8 +86,9 @@ fn in_empty_block<T>(ctx: &RayCtx<'_, T>, p: Vec3) -> bool {
     ctx.empty[ix + c[0] * (iy + c[1] * iz)]
 }
 
-/// Runs the stochastic marcher of `ctx.method` on `[t_in, t_out]`; true when
-/// the ray was terminated early.
+/// Runs the stochastic marcher of `ctx.method` on `[t_in, t_out]`, walking
+/// the blocks of `walk` (the part of it outside which every block is empty);
+/// true when the ray was terminated early.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub(super) fn march<T: Voxel, O: Optics>(
@@ -96,19 +98,20 @@ pub(super) fn march<T: Voxel, O: Optics>(
     view: Vec3,
     t_in: f32,
     t_out: f32,
+    walk: (f32, f32),
     pixel: (u32, u32),
     acc: &mut Acc<'_>,
     n: &mut Counters,
 ) -> bool {
     let rng = || Rng::for_pixel(ctx.seed, pixel.0, pixel.1, ctx.pass);
     match ctx.method {
-        Method::Stratified => stratified::<T, O>(ctx, o, d, view, t_in, t_out, rng(), acc, n),
+        Method::Stratified => stratified::<T, O>(ctx, o, d, view, t_in, t_out, walk, rng(), acc, n),
         Method::Mc => uniform_mc::<T, O>(ctx, o, d, view, t_in, t_out, rng(), acc, n),
         _ => {
             // One offset per ray; the passes follow the pixel's rotated
             // golden-ratio sequence, as `jitter`'s do.
             let xi = super::rng::pixel_sequence(ctx.seed, pixel.0, pixel.1, ctx.pass);
-            importance::<T, O>(ctx, o, d, view, t_in, t_out, xi, acc, n)
+            importance::<T, O>(ctx, o, d, view, walk, xi, acc, n)
         }
     }
 }
@@ -140,6 +143,7 @@ fn stratified<T: Voxel, O: Optics>(
     view: Vec3,
     t_in: f32,
     t_out: f32,
+    walk: (f32, f32),
     mut rng: Rng,
     acc: &mut Acc<'_>,
     n: &mut Counters,
@@ -157,7 +161,7 @@ fn stratified<T: Voxel, O: Optics>(
     let full_alphas = &ctx.level_alphas[(-ctx.level_lo) as usize];
     // A sample belongs to the stretch its position lies in, so skipping an
     // empty stretch drops exactly the samples that contribute nothing.
-    for (ta, tb, b) in BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts) {
+    for (ta, tb, b) in BlockWalker::new(o, d, walk.0, walk.1, ctx.block_size, ctx.block_counts) {
         if ctx.skip_empty && ctx.empty[b] {
             continue;
         }
@@ -221,27 +225,27 @@ fn importance<T: Voxel, O: Optics>(
     o: Vec3,
     d: Vec3,
     view: Vec3,
-    t_in: f32,
-    t_out: f32,
+    walk: (f32, f32),
     xi: f32,
     acc: &mut Acc<'_>,
     n: &mut Counters,
 ) -> bool {
-    // BETA·log₂ e × the optical depth of the extinction's lower bound so
-    // far: the transmittance reaching a block is at most exp(−depth).
+    // BETA·log₂ e × the optical depth of the blocks' mean extinction so
+    // far: the transmittance expected to reach a block is exp(−depth).
     let beta = BETA * std::f32::consts::LOG2_E;
     let mut tau = 0.0f32;
-    let stretches =
-        BlockWalker::new(o, d, t_in, t_out, ctx.block_size, ctx.block_counts).map(|(ta, tb, b)| {
+    let stretches = BlockWalker::new(o, d, walk.0, walk.1, ctx.block_size, ctx.block_counts).map(
+        |(ta, tb, b)| {
             let blk = ctx.pdf[b];
             let j = if blk.level < 0.0 {
                 NO_MASS
             } else {
                 (blk.level + beta * tau).min(MAX_LEVEL as f32) as u8
             };
-            tau += blk.sigma_min * (tb - ta);
+            tau += blk.sigma_mean * (tb - ta);
             (ta, tb, j)
-        });
+        },
+    );
     systematic(stretches, ctx.importance_steps, xi, |t, j| {
         n.samples += 1;
         let Some((i, rgb)) = evaluate(ctx, o + d * t, view, n) else {
@@ -263,9 +267,15 @@ pub(super) const MAX_LEVEL: u8 = 5;
 /// teapot and the lung CT 0.35 gave the best time to quality, see
 /// the sweep of the exponents in the README, "Time to quality and equal time").
 pub(super) const GAMMA: f32 = 0.35;
-/// Exponent of its transmittance term: density `∝ T_max^BETA`, with
-/// `T_max = exp(−∫σ_min)` the most light that can reach a block.
-pub(super) const BETA: f32 = 1.0;
+/// Exponent of its transmittance term: density `∝ T̂^BETA`, with `T̂ =
+/// exp(−∫σ̄)` the light expected to reach a block (σ̄ the blocks' mean
+/// extinction). It is an estimate, not a bound: a ray through a gap of a
+/// dense block gets more light than `T̂` says, and then its samples behind
+/// are too sparse, which costs variance (never bias); a small exponent
+/// keeps that cheap. 0.3 was the best of 0.1–0.5 on the teapot and the lung
+/// CT (docs/README-mc3.md); the lower bound `exp(−∫σ_min)` with exponent 1
+/// that this replaces saved fewer samples.
+pub(super) const BETA: f32 = 0.3;
 
 /// One block of the `importance` pdf.
 #[derive(Clone, Copy, Debug)]
@@ -273,17 +283,19 @@ pub(super) struct PdfBlock {
     /// `γ·log₂(σ_top/σ_max)` (≥ 0): the block's level before attenuation;
     /// negative where the TF makes the block transparent (no mass).
     pub level: f32,
-    /// The smallest extinction the TF gives the block's values, per world
-    /// length: a lower bound of the extinction anywhere in the block.
-    pub sigma_min: f32,
+    /// The mean extinction over the block's voxels, per world length.
+    pub sigma_mean: f32,
 }
 
 /// The `importance` pdf, block by block, from the extinction range the TF
-/// gives each block's value range `[lo, hi]` (`unit_inv`: 1 / unit length).
+/// gives each block's value range `[lo, hi]` and the block's mean
+/// extinction `mean` (per unit length; [`super::blocks::BuildMeanSigma`]);
+/// `unit_inv`: 1 / unit length.
 pub(super) fn pdf_blocks(
     range: &[[f32; 2]],
     tf: &crate::transfer::TransferFunction,
     unit_inv: f32,
+    mean: &[f32],
 ) -> Vec<PdfBlock> {
     let sigma = |a: f32| -(1.0 - a.clamp(0.0, 0.9999)).ln();
     let max: Vec<f32> = range
@@ -297,19 +309,18 @@ pub(super) fn pdf_blocks(
         })
         .collect();
     let top = max.iter().fold(0.0f32, |a, &b| a.max(b));
-    range
-        .iter()
-        .zip(&max)
-        .map(|(&[lo, hi], &m)| {
+    max.iter()
+        .zip(mean)
+        .map(|(&m, &mean)| {
             if m > 0.0 && top > 0.0 {
                 PdfBlock {
                     level: (top / m).log2() * GAMMA,
-                    sigma_min: sigma(tf.min_opacity_in(lo.max(0.0), hi.min(1.0))) * unit_inv,
+                    sigma_mean: mean * unit_inv,
                 }
             } else {
                 PdfBlock {
                     level: -1.0,
-                    sigma_min: 0.0,
+                    sigma_mean: 0.0,
                 }
             }
         })
@@ -457,17 +468,20 @@ mod tests {
             opacity: vec![[0.0, 0.0], [1.0, 0.9]],
             window: None,
         };
-        // Dense, transparent, faint (σ_max 1/16 of the top), attenuating.
+        // Dense, transparent, faint (σ_max 1/16 of the top), attenuating;
+        // mean extinctions per unit length, the unit 0.5 world lengths.
         let blocks = pdf_blocks(
             &[[0.5, 1.0], [-1.0, -1.0], [0.0, 0.0], [0.0, 0.14]],
             &tf,
-            1.0,
+            2.0,
+            &[1.2, 0.0, 0.0, 0.05],
         );
         assert_eq!(blocks[0].level, 0.0);
-        assert!(blocks[0].sigma_min > 0.5, "{:?}", blocks[0]);
+        assert_eq!(blocks[0].sigma_mean, 2.4, "{:?}", blocks[0]);
         assert!(blocks[1].level < 0.0 && blocks[2].level < 0.0);
+        assert_eq!(blocks[1].sigma_mean, 0.0);
         assert!(
-            blocks[3].level > 0.0 && blocks[3].sigma_min == 0.0,
+            blocks[3].level > 0.0 && blocks[3].sigma_mean == 0.1,
             "{:?}",
             blocks[3]
         );
