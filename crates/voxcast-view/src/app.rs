@@ -270,12 +270,18 @@ impl ViewerApp {
                     let rgb = image.to_srgb8();
                     let ci =
                         ColorImage::from_rgb([image.width as usize, image.height as usize], &rgb);
+                    // A preview is uploaded at its own size and scaled by the
+                    // sampler; a full frame maps 1:1 to the view's pixels.
+                    let filter = match quality {
+                        Quality::Preview { .. } => egui::TextureOptions::LINEAR,
+                        Quality::Full => egui::TextureOptions::NEAREST,
+                    };
                     let texture = match self.shown.take() {
                         Some(mut s) => {
-                            s.texture.set(ci, egui::TextureOptions::LINEAR);
+                            s.texture.set(ci, filter);
                             s.texture
                         }
-                        None => ctx.load_texture("volume", ci, egui::TextureOptions::LINEAR),
+                        None => ctx.load_texture("volume", ci, filter),
                     };
                     self.shown = Some(Shown {
                         texture,
@@ -284,26 +290,13 @@ impl ViewerApp {
                         frame,
                         painted_at: u64::MAX,
                     });
-                    let now = Instant::now();
-                    self.shown_times.push_back(now);
-                    while self.shown_times.len() > 120 {
-                        self.shown_times.pop_front();
-                    }
-                    if let Some(s) = &mut self.script {
-                        if s.orbit_start.is_some() && s.orbit_end.is_none() {
-                            s.stats.frames_while_moving += 1;
-                        }
-                        if quality == Quality::Full && generation == self.version {
-                            if let Some(end) = s.orbit_end {
-                                if s.stats.refined_after_stop_ms.is_none() {
-                                    s.stats.refined_after_stop_ms =
-                                        Some(now.duration_since(end).as_secs_f64() * 1e3);
-                                }
-                            }
-                        }
-                    }
                     self.last_stats = Some((stats, quality));
                     self.message.clear();
+                }
+                Reply::Cancelled { .. } => {
+                    if let Some(s) = &mut self.script {
+                        s.stats.full_cancelled += 1;
+                    }
                 }
                 Reply::Error {
                     generation,
@@ -404,6 +397,7 @@ impl ViewerApp {
                     s.orbit_end = Some(now);
                     s.stats.orbit_seconds = now.duration_since(start).as_secs_f64();
                 } else {
+                    s.stats.ui_frames_while_moving += 1;
                     turn = ORBIT_SPEED * ctx.input(|i| i.stable_dt).min(0.1);
                 }
             }
@@ -496,6 +490,31 @@ impl ViewerApp {
         }
     }
 
+    /// Counts an image painted for the first time: the fps of the stats
+    /// bar and the scripted measurement count images that reached the
+    /// screen, not images that arrived (two arriving between UI frames show
+    /// only the second).
+    fn on_new_image(&mut self, quality: Quality, generation: u64) {
+        let now = Instant::now();
+        self.shown_times.push_back(now);
+        while self.shown_times.len() > 120 {
+            self.shown_times.pop_front();
+        }
+        let version = self.version;
+        let Some(s) = &mut self.script else { return };
+        if s.orbit_start.is_some() && s.orbit_end.is_none() {
+            s.stats.frames_while_moving += 1;
+        }
+        if quality == Quality::Full && generation == version {
+            if let Some(end) = s.orbit_end {
+                if s.stats.refined_after_stop_ms.is_none() {
+                    s.stats.refined_after_stop_ms =
+                        Some(now.duration_since(end).as_secs_f64() * 1e3);
+                }
+            }
+        }
+    }
+
     fn view(&mut self, ui: &mut egui::Ui) {
         let ppp = ui.ctx().pixels_per_point();
         let avail = ui.available_rect_before_wrap();
@@ -521,17 +540,28 @@ impl ViewerApp {
             .params
             .background
             .map(|c| (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
-        painter.rect_filled(rect, 0.0, Color32::from_rgb(bg[0], bg[1], bg[2]));
-        if let Some(s) = &mut self.shown {
-            painter.image(
-                s.texture.id(),
-                rect,
-                Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-                Color32::WHITE,
-            );
-            if s.painted_at == u64::MAX {
-                s.painted_at = self.ui_frame;
+        let mut newly_painted = None;
+        match &mut self.shown {
+            // The image is opaque and covers the view: no background under
+            // it (on a software rasteriser every covered pixel costs).
+            Some(s) => {
+                painter.image(
+                    s.texture.id(),
+                    rect,
+                    Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                    Color32::WHITE,
+                );
+                if s.painted_at == u64::MAX {
+                    s.painted_at = self.ui_frame;
+                    newly_painted = Some((s.quality, s.generation));
+                }
             }
+            None => {
+                painter.rect_filled(rect, 0.0, Color32::from_rgb(bg[0], bg[1], bg[2]));
+            }
+        }
+        if let Some((quality, generation)) = newly_painted {
+            self.on_new_image(quality, generation);
         }
         if resp.dragged() {
             let d = resp.drag_delta() * ppp;
@@ -946,6 +976,10 @@ fn short(p: &str) -> String {
 }
 
 impl eframe::App for ViewerApp {
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        visuals.panel_fill.to_normalized_gamma_f32()
+    }
+
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         self.ui_frame += 1;
@@ -953,15 +987,21 @@ impl eframe::App for ViewerApp {
         self.take_screenshot(&ctx);
         self.advance_playback();
         self.run_script(&ctx);
+        // The panels are not filled: the clear colour (the panel colour, see
+        // `clear_color`) shows through for free, where a fill is one more
+        // layer of blended pixels for a software rasteriser every frame.
+        let panel_frame = egui::Frame::side_top_panel(ui.style()).fill(Color32::TRANSPARENT);
         egui::Panel::right("controls")
             .exact_size(PANEL_WIDTH)
             .resizable(false)
+            .frame(panel_frame)
             .show(ui, |ui| {
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
         egui::Panel::bottom("stats")
             .exact_size(BAR_HEIGHT)
             .resizable(false)
+            .frame(panel_frame)
             .show(ui, |ui| self.stats_bar(ui));
         egui::CentralPanel::no_frame().show(ui, |ui| self.view(ui));
         self.schedule(&ctx);
