@@ -5,6 +5,7 @@
 
 use crate::backend::Backend;
 use crate::camera_ctl::OrbitController;
+use crate::image_paint::{self, PaintImage};
 use crate::progressive::{frame_params, Quality, Scheduler};
 use crate::screenshot::{crop_rgba, Rgb8};
 use crate::tf_model::{LogHistogram, TfModel};
@@ -53,9 +54,17 @@ struct TimeState {
     last_step: Instant,
 }
 
+/// How the image on screen is drawn.
+enum Pixels {
+    /// With a pipeline of its own (the default on wgpu).
+    Paint(Arc<PaintImage>),
+    /// As an egui texture (`VOXCAST_VIEW_EGUI_IMAGE=1`, or no wgpu).
+    Texture(TextureHandle),
+}
+
 /// The image on screen.
 struct Shown {
-    texture: TextureHandle,
+    pixels: Pixels,
     generation: u64,
     quality: Quality,
     frame: usize,
@@ -94,6 +103,10 @@ pub struct ViewerApp {
     /// The last request sent: (version, full quality?).
     requested: Option<(u64, bool)>,
     shown: Option<Shown>,
+    /// Draw the image with `image_paint` (else as an egui texture).
+    paint_images: bool,
+    /// Images received (their ids for `image_paint`).
+    images: u64,
     histogram: Option<LogHistogram>,
     /// Times at which new images were shown (for fps).
     shown_times: VecDeque<Instant>,
@@ -115,6 +128,14 @@ pub struct ViewerApp {
 impl ViewerApp {
     pub fn new(cc: &eframe::CreationContext<'_>, setup: Setup) -> ViewerApp {
         let ctx = cc.egui_ctx.clone();
+        let egui_image = std::env::var_os("VOXCAST_VIEW_EGUI_IMAGE").is_some_and(|v| v == "1");
+        let paint_images = match &cc.wgpu_render_state {
+            Some(rs) if !egui_image => {
+                image_paint::install(rs);
+                true
+            }
+            _ => false,
+        };
         let Setup {
             scene,
             tf,
@@ -185,6 +206,8 @@ impl ViewerApp {
             last_change: Instant::now(),
             requested: None,
             shown: None,
+            paint_images,
+            images: 0,
             histogram: None,
             shown_times: VecDeque::new(),
             last_stats: None,
@@ -251,6 +274,7 @@ impl ViewerApp {
                     frame,
                     quality,
                     image,
+                    srgba,
                     stats,
                 } => {
                     if let Quality::Preview { .. } = quality {
@@ -267,24 +291,38 @@ impl ViewerApp {
                             Quality::Full => s.stats.full_render_ms.push(t * 1e3),
                         }
                     }
-                    let rgb = image.to_srgb8();
-                    let ci =
-                        ColorImage::from_rgb([image.width as usize, image.height as usize], &rgb);
                     // A preview is uploaded at its own size and scaled by the
                     // sampler; a full frame maps 1:1 to the view's pixels.
-                    let filter = match quality {
-                        Quality::Preview { .. } => egui::TextureOptions::LINEAR,
-                        Quality::Full => egui::TextureOptions::NEAREST,
-                    };
-                    let texture = match self.shown.take() {
-                        Some(mut s) => {
-                            s.texture.set(ci, filter);
-                            s.texture
+                    let preview = matches!(quality, Quality::Preview { .. });
+                    self.images += 1;
+                    let pixels = if self.paint_images {
+                        Pixels::Paint(Arc::new(PaintImage {
+                            id: self.images,
+                            width: image.width,
+                            height: image.height,
+                            rgba: srgba,
+                            linear: preview,
+                        }))
+                    } else {
+                        let ci = ColorImage::from_rgba_unmultiplied(
+                            [image.width as usize, image.height as usize],
+                            &srgba,
+                        );
+                        let filter = if preview {
+                            egui::TextureOptions::LINEAR
+                        } else {
+                            egui::TextureOptions::NEAREST
+                        };
+                        match self.shown.take().map(|s| s.pixels) {
+                            Some(Pixels::Texture(mut t)) => {
+                                t.set(ci, filter);
+                                Pixels::Texture(t)
+                            }
+                            _ => Pixels::Texture(ctx.load_texture("volume", ci, filter)),
                         }
-                        None => ctx.load_texture("volume", ci, filter),
                     };
                     self.shown = Some(Shown {
-                        texture,
+                        pixels,
                         generation,
                         quality,
                         frame,
@@ -545,12 +583,19 @@ impl ViewerApp {
             // The image is opaque and covers the view: no background under
             // it (on a software rasteriser every covered pixel costs).
             Some(s) => {
-                painter.image(
-                    s.texture.id(),
-                    rect,
-                    Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-                    Color32::WHITE,
-                );
+                match &s.pixels {
+                    Pixels::Paint(img) => {
+                        painter.add(image_paint::shape(rect, img.clone()));
+                    }
+                    Pixels::Texture(t) => {
+                        painter.image(
+                            t.id(),
+                            rect,
+                            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                            Color32::WHITE,
+                        );
+                    }
+                }
                 if s.painted_at == u64::MAX {
                     s.painted_at = self.ui_frame;
                     newly_painted = Some((s.quality, s.generation));

@@ -14,6 +14,7 @@
 mod app;
 pub mod backend;
 pub mod camera_ctl;
+mod image_paint;
 pub mod progressive;
 pub mod screenshot;
 pub mod tf_model;

@@ -61,6 +61,8 @@ pub enum Reply {
         frame: usize,
         quality: Quality,
         image: Image,
+        /// `image` as 8-bit sRGB RGBA (converted here, off the UI thread).
+        srgba: Vec<u8>,
         stats: RenderStats,
     },
     /// A full-quality frame was abandoned for a newer request.
@@ -298,6 +300,7 @@ impl Thread {
                         generation: req.generation,
                         frame: req.frame,
                         quality: req.quality,
+                        srgba: srgba8(&image),
                         image,
                         stats,
                     }),
@@ -339,6 +342,19 @@ impl Thread {
         });
         Ok(())
     }
+}
+
+/// `image` as 8-bit sRGB RGBA, opaque.
+pub fn srgba8(image: &Image) -> Vec<u8> {
+    use voxcast::transfer::linear_to_srgb;
+    image
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            let [r, g, b] = [p[0], p[1], p[2]].map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8);
+            [r, g, b, 255]
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -439,10 +455,20 @@ mod tests {
         );
         match &got[1] {
             Reply::Frame {
-                generation, image, ..
+                generation,
+                image,
+                srgba,
+                ..
             } => {
                 assert_eq!(*generation, 7);
                 assert_eq!((image.width, image.height), (24, 16));
+                // The bytes are exactly `to_srgb8`'s, opaque.
+                let rgb = image.to_srgb8();
+                assert_eq!(srgba.len(), 24 * 16 * 4);
+                for (a, b) in srgba.chunks(4).zip(rgb.chunks(3)) {
+                    assert_eq!(&a[..3], b);
+                    assert_eq!(a[3], 255);
+                }
             }
             r => panic!("expected a frame, got {r:?}"),
         }
