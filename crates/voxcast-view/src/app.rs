@@ -62,6 +62,23 @@ enum Pixels {
     Texture(TextureHandle),
 }
 
+impl TimeState {
+    /// The current frame's time: the file's name for it (WRF's `Times`)
+    /// where there is one, else the number and its unit.
+    fn label(&self) -> String {
+        match self.series.label(self.frame) {
+            Some(l) => format!("t = {l}"),
+            None => format!(
+                "t = {:.3} {}",
+                self.times[self.frame],
+                self.series.time_units.as_deref().unwrap_or("")
+            )
+            .trim_end()
+            .to_string(),
+        }
+    }
+}
+
 /// The image on screen.
 struct Shown {
     pixels: Pixels,
@@ -663,12 +680,7 @@ impl ViewerApp {
             }
             text += &format!("{}×{}", self.params.width, self.params.height);
             if let Some(t) = &self.time {
-                text += &format!(
-                    " · frame {}/{} t = {:.3}",
-                    t.frame + 1,
-                    t.times.len(),
-                    t.times[t.frame]
-                );
+                text += &format!(" · frame {}/{} {}", t.frame + 1, t.times.len(), t.label());
             }
             ui.monospace(text);
             if !self.message.is_empty() {
@@ -767,11 +779,7 @@ impl ViewerApp {
                 }
             });
             ui.horizontal(|ui| {
-                ui.label(format!(
-                    "t = {:.3} {}",
-                    t.times[t.frame],
-                    t.series.time_units.as_deref().unwrap_or("")
-                ));
+                ui.label(t.label());
                 ui.add(
                     egui::DragValue::new(&mut t.fps)
                         .range(0.2..=60.0)

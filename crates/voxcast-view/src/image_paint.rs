@@ -16,7 +16,8 @@ use eframe::egui;
 use eframe::egui_wgpu::{self, wgpu};
 use std::sync::Arc;
 
-/// An image to show: 8-bit sRGB RGBA, `width`×`height`.
+/// An image to show: 8-bit sRGB RGBA, `width`×`height`, opaque (alpha 255:
+/// the shader copies alpha too).
 pub struct PaintImage {
     /// Changes whenever the pixels change (the upload is skipped otherwise).
     pub id: u64,
@@ -33,11 +34,12 @@ struct VOut {
     @location(0) uv: vec2<f32>,
 };
 
-// One triangle that covers the viewport (egui sets the viewport to the
-// callback's rectangle).
+// A quad (triangle strip) exactly covering the viewport, which egui sets to
+// the callback's rectangle: an axis-aligned rectangle with a plain texture
+// copy is what a software rasteriser's fast paths recognise.
 @vertex
 fn vs(@builtin(vertex_index) i: u32) -> VOut {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    let uv = vec2<f32>(f32(i & 1u), f32(i >> 1u));
     var o: VOut;
     o.pos = vec4<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0, 0.0, 1.0);
     o.uv = uv;
@@ -47,9 +49,10 @@ fn vs(@builtin(vertex_index) i: u32) -> VOut {
 @group(0) @binding(0) var image: texture_2d<f32>;
 @group(0) @binding(1) var image_sampler: sampler;
 
+// The texture is opaque (alpha 255): a straight copy.
 @fragment
 fn fs(v: VOut) -> @location(0) vec4<f32> {
-    return vec4<f32>(textureSample(image, image_sampler, v.uv).rgb, 1.0);
+    return textureSample(image, image_sampler, v.uv);
 }
 ";
 
@@ -124,7 +127,10 @@ pub fn install(rs: &egui_wgpu::RenderState) {
                 write_mask: wgpu::ColorWrites::ALL,
             })],
         }),
-        primitive: wgpu::PrimitiveState::default(),
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleStrip,
+            ..Default::default()
+        },
         depth_stencil: None,
         multisample: wgpu::MultisampleState::default(),
         multiview_mask: None,
@@ -263,6 +269,6 @@ impl egui_wgpu::CallbackTrait for ImageCallback {
         let Some(u) = &res.uploaded else { return };
         pass.set_pipeline(&res.pipeline);
         pass.set_bind_group(0, &u.bind_group, &[]);
-        pass.draw(0..3, 0..1);
+        pass.draw(0..4, 0..1);
     }
 }
