@@ -602,7 +602,9 @@ impl ViewerApp {
             Some(s) => {
                 match &s.pixels {
                     Pixels::Paint(img) => {
-                        painter.add(image_paint::shape(rect, img.clone()));
+                        if std::env::var("VOXCAST_VIEW_EXPERIMENT").as_deref() != Ok("noimage") {
+                            painter.add(image_paint::shape(rect, img.clone()));
+                        }
                     }
                     Pixels::Texture(t) => {
                         painter.image(
@@ -730,13 +732,15 @@ impl ViewerApp {
             ui.label("preset");
         });
         let width = ui.available_width().min(PANEL_WIDTH - 20.0);
-        if tf_widget::show(
-            ui,
-            &mut self.tf,
-            self.histogram.as_ref(),
-            &mut self.tf_state,
-            width,
-        ) {
+        if !std::env::var("VOXCAST_VIEW_EXPERIMENT").is_ok_and(|v| v.contains("notf"))
+            && tf_widget::show(
+                ui,
+                &mut self.tf,
+                self.histogram.as_ref(),
+                &mut self.tf_state,
+                width,
+            )
+        {
             changed = true;
         }
         ui.horizontal(|ui| {
@@ -1035,6 +1039,9 @@ impl eframe::App for ViewerApp {
 
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
+        if std::env::var("VOXCAST_VIEW_EXPERIMENT").is_ok_and(|v| v.contains("nofeather")) {
+            ctx.tessellation_options_mut(|o| o.feathering = false);
+        }
         self.ui_frame += 1;
         self.poll_replies(&ctx);
         self.take_screenshot(&ctx);
@@ -1049,7 +1056,9 @@ impl eframe::App for ViewerApp {
             .resizable(false)
             .frame(panel_frame)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+                if std::env::var("VOXCAST_VIEW_EXPERIMENT").as_deref() != Ok("nopanel") {
+                    egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+                }
             });
         egui::Panel::bottom("stats")
             .exact_size(BAR_HEIGHT)

@@ -185,8 +185,15 @@ impl Worker {
             .spawn(move || {
                 // Leave one core to the UI thread (and a software rasteriser
                 // such as lavapipe), or dragging stutters while frames render.
-                let threads = std::thread::available_parallelism()
-                    .map_or(1, |n| n.get().saturating_sub(1).max(1));
+                // `VOXCAST_VIEW_RENDER_THREADS` overrides.
+                let threads = std::env::var("VOXCAST_VIEW_RENDER_THREADS")
+                    .ok()
+                    .and_then(|v| v.parse::<usize>().ok())
+                    .filter(|&n| n > 0)
+                    .unwrap_or_else(|| {
+                        std::thread::available_parallelism()
+                            .map_or(1, |n| n.get().saturating_sub(1).max(1))
+                    });
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .thread_name(|i| format!("voxcast-view render {i}"))
