@@ -169,7 +169,10 @@ impl ViewerApp {
         }
         let cam = OrbitController::new(&scene.camera, (lo, hi));
         let (source, frame) = match &series {
-            Some((s, f)) => (Source::Series(s.clone(), scene.input.options.clone()), *f),
+            Some((s, f)) => (
+                Source::Series(Box::new(s.clone()), scene.input.options.clone()),
+                *f,
+            ),
             None => (Source::Single, 0),
         };
         let worker = Worker::spawn(

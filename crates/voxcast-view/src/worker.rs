@@ -80,7 +80,7 @@ pub enum Source {
     /// One volume.
     Single,
     /// A series, loaded frame by frame with these options.
-    Series(Series, OpenOptions),
+    Series(Box<Series>, OpenOptions),
 }
 
 /// The one-place mailbox.
