@@ -281,13 +281,14 @@ fn view(a: ViewArgs) -> Result<()> {
         p.sort_by(f64::total_cmp);
         let median = p.get(p.len() / 2).copied().unwrap_or(f64::NAN);
         eprintln!(
-            "{} {}×{}: {:.1} frames/s while moving ({} frames in {:.2} s; previews 1/{} = {}×{}, median {:.0} ms); refined image {} ms after the camera stopped (full render {} ms)",
+            "{} {}×{}: {:.1} frames/s while moving ({} new images painted in {:.2} s, {:.1} UI frames/s; previews 1/{} = {}×{}, median {:.0} ms); refined image {} ms after the camera stopped (full render {} ms)",
             stats.backend,
             stats.view[0],
             stats.view[1],
             stats.fps_while_moving(),
             stats.frames_while_moving,
             stats.orbit_seconds,
+            stats.ui_fps_while_moving(),
             stats.preview_divisor,
             stats.preview_size[0],
             stats.preview_size[1],

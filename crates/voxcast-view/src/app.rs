@@ -5,6 +5,7 @@
 
 use crate::backend::Backend;
 use crate::camera_ctl::OrbitController;
+use crate::image_paint::{self, PaintImage};
 use crate::progressive::{frame_params, Quality, Scheduler};
 use crate::screenshot::{crop_rgba, Rgb8};
 use crate::tf_model::{LogHistogram, TfModel};
@@ -53,9 +54,34 @@ struct TimeState {
     last_step: Instant,
 }
 
+/// How the image on screen is drawn.
+enum Pixels {
+    /// With a pipeline of its own (the default on wgpu).
+    Paint(Arc<PaintImage>),
+    /// As an egui texture (`VOXCAST_VIEW_EGUI_IMAGE=1`, or no wgpu).
+    Texture(TextureHandle),
+}
+
+impl TimeState {
+    /// The current frame's time: the file's name for it (WRF's `Times`)
+    /// where there is one, else the number and its unit.
+    fn label(&self) -> String {
+        match self.series.label(self.frame) {
+            Some(l) => format!("t = {l}"),
+            None => format!(
+                "t = {:.3} {}",
+                self.times[self.frame],
+                self.series.time_units.as_deref().unwrap_or("")
+            )
+            .trim_end()
+            .to_string(),
+        }
+    }
+}
+
 /// The image on screen.
 struct Shown {
-    texture: TextureHandle,
+    pixels: Pixels,
     generation: u64,
     quality: Quality,
     frame: usize,
@@ -94,6 +120,10 @@ pub struct ViewerApp {
     /// The last request sent: (version, full quality?).
     requested: Option<(u64, bool)>,
     shown: Option<Shown>,
+    /// Draw the image with `image_paint` (else as an egui texture).
+    paint_images: bool,
+    /// Images received (their ids for `image_paint`).
+    images: u64,
     histogram: Option<LogHistogram>,
     /// Times at which new images were shown (for fps).
     shown_times: VecDeque<Instant>,
@@ -115,6 +145,14 @@ pub struct ViewerApp {
 impl ViewerApp {
     pub fn new(cc: &eframe::CreationContext<'_>, setup: Setup) -> ViewerApp {
         let ctx = cc.egui_ctx.clone();
+        let egui_image = std::env::var_os("VOXCAST_VIEW_EGUI_IMAGE").is_some_and(|v| v == "1");
+        let paint_images = match &cc.wgpu_render_state {
+            Some(rs) if !egui_image => {
+                image_paint::install(rs);
+                true
+            }
+            _ => false,
+        };
         let Setup {
             scene,
             tf,
@@ -131,7 +169,10 @@ impl ViewerApp {
         }
         let cam = OrbitController::new(&scene.camera, (lo, hi));
         let (source, frame) = match &series {
-            Some((s, f)) => (Source::Series(s.clone(), scene.input.options.clone()), *f),
+            Some((s, f)) => (
+                Source::Series(Box::new(s.clone()), scene.input.options.clone()),
+                *f,
+            ),
             None => (Source::Single, 0),
         };
         let worker = Worker::spawn(
@@ -185,6 +226,8 @@ impl ViewerApp {
             last_change: Instant::now(),
             requested: None,
             shown: None,
+            paint_images,
+            images: 0,
             histogram: None,
             shown_times: VecDeque::new(),
             last_stats: None,
@@ -251,6 +294,7 @@ impl ViewerApp {
                     frame,
                     quality,
                     image,
+                    srgba,
                     stats,
                 } => {
                     if let Quality::Preview { .. } = quality {
@@ -267,43 +311,50 @@ impl ViewerApp {
                             Quality::Full => s.stats.full_render_ms.push(t * 1e3),
                         }
                     }
-                    let rgb = image.to_srgb8();
-                    let ci =
-                        ColorImage::from_rgb([image.width as usize, image.height as usize], &rgb);
-                    let texture = match self.shown.take() {
-                        Some(mut s) => {
-                            s.texture.set(ci, egui::TextureOptions::LINEAR);
-                            s.texture
+                    // A preview is uploaded at its own size and scaled by the
+                    // sampler; a full frame maps 1:1 to the view's pixels.
+                    let preview = matches!(quality, Quality::Preview { .. });
+                    self.images += 1;
+                    let pixels = if self.paint_images {
+                        Pixels::Paint(Arc::new(PaintImage {
+                            id: self.images,
+                            width: image.width,
+                            height: image.height,
+                            rgba: srgba,
+                            linear: preview,
+                        }))
+                    } else {
+                        let ci = ColorImage::from_rgba_unmultiplied(
+                            [image.width as usize, image.height as usize],
+                            &srgba,
+                        );
+                        let filter = if preview {
+                            egui::TextureOptions::LINEAR
+                        } else {
+                            egui::TextureOptions::NEAREST
+                        };
+                        match self.shown.take().map(|s| s.pixels) {
+                            Some(Pixels::Texture(mut t)) => {
+                                t.set(ci, filter);
+                                Pixels::Texture(t)
+                            }
+                            _ => Pixels::Texture(ctx.load_texture("volume", ci, filter)),
                         }
-                        None => ctx.load_texture("volume", ci, egui::TextureOptions::LINEAR),
                     };
                     self.shown = Some(Shown {
-                        texture,
+                        pixels,
                         generation,
                         quality,
                         frame,
                         painted_at: u64::MAX,
                     });
-                    let now = Instant::now();
-                    self.shown_times.push_back(now);
-                    while self.shown_times.len() > 120 {
-                        self.shown_times.pop_front();
-                    }
-                    if let Some(s) = &mut self.script {
-                        if s.orbit_start.is_some() && s.orbit_end.is_none() {
-                            s.stats.frames_while_moving += 1;
-                        }
-                        if quality == Quality::Full && generation == self.version {
-                            if let Some(end) = s.orbit_end {
-                                if s.stats.refined_after_stop_ms.is_none() {
-                                    s.stats.refined_after_stop_ms =
-                                        Some(now.duration_since(end).as_secs_f64() * 1e3);
-                                }
-                            }
-                        }
-                    }
                     self.last_stats = Some((stats, quality));
                     self.message.clear();
+                }
+                Reply::Cancelled { .. } => {
+                    if let Some(s) = &mut self.script {
+                        s.stats.full_cancelled += 1;
+                    }
                 }
                 Reply::Error {
                     generation,
@@ -404,6 +455,7 @@ impl ViewerApp {
                     s.orbit_end = Some(now);
                     s.stats.orbit_seconds = now.duration_since(start).as_secs_f64();
                 } else {
+                    s.stats.ui_frames_while_moving += 1;
                     turn = ORBIT_SPEED * ctx.input(|i| i.stable_dt).min(0.1);
                 }
             }
@@ -496,6 +548,31 @@ impl ViewerApp {
         }
     }
 
+    /// Counts an image painted for the first time: the fps of the stats
+    /// bar and the scripted measurement count images that reached the
+    /// screen, not images that arrived (two arriving between UI frames show
+    /// only the second).
+    fn on_new_image(&mut self, quality: Quality, generation: u64) {
+        let now = Instant::now();
+        self.shown_times.push_back(now);
+        while self.shown_times.len() > 120 {
+            self.shown_times.pop_front();
+        }
+        let version = self.version;
+        let Some(s) = &mut self.script else { return };
+        if s.orbit_start.is_some() && s.orbit_end.is_none() {
+            s.stats.frames_while_moving += 1;
+        }
+        if quality == Quality::Full && generation == version {
+            if let Some(end) = s.orbit_end {
+                if s.stats.refined_after_stop_ms.is_none() {
+                    s.stats.refined_after_stop_ms =
+                        Some(now.duration_since(end).as_secs_f64() * 1e3);
+                }
+            }
+        }
+    }
+
     fn view(&mut self, ui: &mut egui::Ui) {
         let ppp = ui.ctx().pixels_per_point();
         let avail = ui.available_rect_before_wrap();
@@ -521,17 +598,37 @@ impl ViewerApp {
             .params
             .background
             .map(|c| (c.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
-        painter.rect_filled(rect, 0.0, Color32::from_rgb(bg[0], bg[1], bg[2]));
-        if let Some(s) = &mut self.shown {
-            painter.image(
-                s.texture.id(),
-                rect,
-                Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-                Color32::WHITE,
-            );
-            if s.painted_at == u64::MAX {
-                s.painted_at = self.ui_frame;
+        let mut newly_painted = None;
+        match &mut self.shown {
+            // The image is opaque and covers the view: no background under
+            // it (on a software rasteriser every covered pixel costs).
+            Some(s) => {
+                match &s.pixels {
+                    Pixels::Paint(img) => {
+                        if std::env::var("VOXCAST_VIEW_EXPERIMENT").as_deref() != Ok("noimage") {
+                            painter.add(image_paint::shape(rect, img.clone()));
+                        }
+                    }
+                    Pixels::Texture(t) => {
+                        painter.image(
+                            t.id(),
+                            rect,
+                            Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
+                            Color32::WHITE,
+                        );
+                    }
+                }
+                if s.painted_at == u64::MAX {
+                    s.painted_at = self.ui_frame;
+                    newly_painted = Some((s.quality, s.generation));
+                }
             }
+            None => {
+                painter.rect_filled(rect, 0.0, Color32::from_rgb(bg[0], bg[1], bg[2]));
+            }
+        }
+        if let Some((quality, generation)) = newly_painted {
+            self.on_new_image(quality, generation);
         }
         if resp.dragged() {
             let d = resp.drag_delta() * ppp;
@@ -588,12 +685,7 @@ impl ViewerApp {
             }
             text += &format!("{}×{}", self.params.width, self.params.height);
             if let Some(t) = &self.time {
-                text += &format!(
-                    " · frame {}/{} t = {:.3}",
-                    t.frame + 1,
-                    t.times.len(),
-                    t.times[t.frame]
-                );
+                text += &format!(" · frame {}/{} {}", t.frame + 1, t.times.len(), t.label());
             }
             ui.monospace(text);
             if !self.message.is_empty() {
@@ -643,13 +735,15 @@ impl ViewerApp {
             ui.label("preset");
         });
         let width = ui.available_width().min(PANEL_WIDTH - 20.0);
-        if tf_widget::show(
-            ui,
-            &mut self.tf,
-            self.histogram.as_ref(),
-            &mut self.tf_state,
-            width,
-        ) {
+        if !std::env::var("VOXCAST_VIEW_EXPERIMENT").is_ok_and(|v| v.contains("notf"))
+            && tf_widget::show(
+                ui,
+                &mut self.tf,
+                self.histogram.as_ref(),
+                &mut self.tf_state,
+                width,
+            )
+        {
             changed = true;
         }
         ui.horizontal(|ui| {
@@ -692,11 +786,7 @@ impl ViewerApp {
                 }
             });
             ui.horizontal(|ui| {
-                ui.label(format!(
-                    "t = {:.3} {}",
-                    t.times[t.frame],
-                    t.series.time_units.as_deref().unwrap_or("")
-                ));
+                ui.label(t.label());
                 ui.add(
                     egui::DragValue::new(&mut t.fps)
                         .range(0.2..=60.0)
@@ -946,22 +1036,37 @@ fn short(p: &str) -> String {
 }
 
 impl eframe::App for ViewerApp {
+    fn clear_color(&self, visuals: &egui::Visuals) -> [f32; 4] {
+        visuals.panel_fill.to_normalized_gamma_f32()
+    }
+
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
+        if std::env::var("VOXCAST_VIEW_EXPERIMENT").is_ok_and(|v| v.contains("nofeather")) {
+            ctx.tessellation_options_mut(|o| o.feathering = false);
+        }
         self.ui_frame += 1;
         self.poll_replies(&ctx);
         self.take_screenshot(&ctx);
         self.advance_playback();
         self.run_script(&ctx);
+        // The panels are not filled: the clear colour (the panel colour, see
+        // `clear_color`) shows through for free, where a fill is one more
+        // layer of blended pixels for a software rasteriser every frame.
+        let panel_frame = egui::Frame::side_top_panel(ui.style()).fill(Color32::TRANSPARENT);
         egui::Panel::right("controls")
             .exact_size(PANEL_WIDTH)
             .resizable(false)
+            .frame(panel_frame)
             .show(ui, |ui| {
-                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+                if std::env::var("VOXCAST_VIEW_EXPERIMENT").as_deref() != Ok("nopanel") {
+                    egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+                }
             });
         egui::Panel::bottom("stats")
             .exact_size(BAR_HEIGHT)
             .resizable(false)
+            .frame(panel_frame)
             .show(ui, |ui| self.stats_bar(ui));
         egui::CentralPanel::no_frame().show(ui, |ui| self.view(ui));
         self.schedule(&ctx);

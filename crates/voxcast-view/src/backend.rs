@@ -9,6 +9,7 @@
 //! renderer inside the GPU back end, frame by frame, so every control keeps
 //! working; the stats bar says which device drew the frame.
 
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use voxcast::camera::CameraParams;
 use voxcast::geometry::Geometry;
@@ -49,12 +50,15 @@ impl Backend {
 
 /// A renderer bound to one volume and data window.
 pub trait FrameRenderer {
-    /// Renders one frame.
+    /// Renders one frame; gives up with [`voxcast::Error::Cancelled`] once
+    /// `cancel` is raised (the CPU renderer checks it per tile; a GPU frame
+    /// is one short dispatch and runs to its end).
     fn render(
         &mut self,
         tf: &TransferFunction,
         camera: &CameraParams,
         params: &RenderParams,
+        cancel: &AtomicBool,
     ) -> voxcast::Result<(Image, RenderStats)>;
 }
 
@@ -103,6 +107,7 @@ impl FrameRenderer for GpuFrames<'_> {
         tf: &TransferFunction,
         camera: &CameraParams,
         params: &RenderParams,
+        cancel: &AtomicBool,
     ) -> voxcast::Result<(Image, RenderStats)> {
         if voxcast_gpu::supports(params.method) && !self.has_geometry {
             return self
@@ -115,7 +120,7 @@ impl FrameRenderer for GpuFrames<'_> {
                 Some(Renderer::new(self.volume, self.window)?.with_geometry(self.geometry.clone()));
         }
         let cpu = self.cpu.as_ref().expect("made just above");
-        cpu.render(tf, camera, params, &|_, _| {})
+        cpu.render_cancellable(tf, camera, params, &|_, _| {}, cancel)
     }
 }
 
@@ -131,7 +136,9 @@ impl FrameRenderer for CpuFrames<'_> {
         tf: &TransferFunction,
         camera: &CameraParams,
         params: &RenderParams,
+        cancel: &AtomicBool,
     ) -> voxcast::Result<(Image, RenderStats)> {
-        self.renderer.render(tf, camera, params, &|_, _| {})
+        self.renderer
+            .render_cancellable(tf, camera, params, &|_, _| {}, cancel)
     }
 }

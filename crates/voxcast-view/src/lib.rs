@@ -14,6 +14,7 @@
 mod app;
 pub mod backend;
 pub mod camera_ctl;
+mod image_paint;
 pub mod progressive;
 pub mod screenshot;
 pub mod tf_model;
@@ -67,8 +68,11 @@ pub struct ScriptStats {
     pub ui_frames: u64,
     /// Length of the scripted orbit (s).
     pub orbit_seconds: f64,
-    /// New images shown during the orbit.
+    /// Distinct new images painted during the orbit (an image replaced
+    /// before a UI frame painted it does not count).
     pub frames_while_moving: u64,
+    /// UI frames drawn during the orbit.
+    pub ui_frames_while_moving: u64,
     /// Render time of each preview (ms).
     pub preview_render_ms: Vec<f64>,
     /// The last preview's divisor and size.
@@ -76,8 +80,13 @@ pub struct ScriptStats {
     pub preview_size: [u32; 2],
     /// Render time of each full-quality frame (ms).
     pub full_render_ms: Vec<f64>,
-    /// From the end of the orbit to the refined image on screen (ms).
+    /// From the end of the orbit to the UI frame that first painted the
+    /// refined image (ms).
     pub refined_after_stop_ms: Option<f64>,
+    /// Full-quality frames abandoned for a newer request.
+    pub full_cancelled: u64,
+    /// The window's present mode.
+    pub present_mode: String,
 }
 
 impl ScriptStats {
@@ -85,6 +94,15 @@ impl ScriptStats {
     pub fn fps_while_moving(&self) -> f64 {
         if self.orbit_seconds > 0.0 {
             self.frames_while_moving as f64 / self.orbit_seconds
+        } else {
+            0.0
+        }
+    }
+
+    /// UI frames per second during the orbit.
+    pub fn ui_fps_while_moving(&self) -> f64 {
+        if self.orbit_seconds > 0.0 {
+            self.ui_frames_while_moving as f64 / self.orbit_seconds
         } else {
             0.0
         }
@@ -109,11 +127,19 @@ pub fn run(scene: Scene, options: ViewOptions) -> Result<ScriptStats, ViewError>
         outcome: outcome.clone(),
         scene,
     };
+    let present = present_mode()?;
+    let mut wgpu_options = eframe::egui_wgpu::WgpuConfiguration::default();
+    wgpu_options.surface.present_mode = present;
     let native = eframe::NativeOptions {
         viewport: eframe::egui::ViewportBuilder::default()
             .with_title("voxcast view")
             .with_inner_size([w as f32 + app::PANEL_WIDTH, h as f32 + app::BAR_HEIGHT]),
         renderer: eframe::Renderer::Wgpu,
+        wgpu_options,
+        // Dithering adds noise to every pixel, the volume's too (screenshots
+        // would no longer match `voxcast render`), and costs per pixel on a
+        // software rasteriser.
+        dithering: std::env::var_os("VOXCAST_VIEW_DITHER").is_some_and(|v| v == "1"),
         ..Default::default()
     };
     eframe::run_native(
@@ -131,13 +157,40 @@ pub fn run(scene: Scene, options: ViewOptions) -> Result<ScriptStats, ViewError>
         || options.orbit.is_some();
     let result = outcome.lock().unwrap_or_else(|e| e.into_inner()).take();
     match result {
-        Some(Ok(stats)) => Ok(stats),
+        Some(Ok(mut stats)) => {
+            stats.present_mode = format!("{present:?}");
+            Ok(stats)
+        }
         Some(Err(e)) => Err(ViewError::Script(e)),
         None if scripted => Err(ViewError::Script(
             "the window was closed before the scripted run finished".into(),
         )),
         None => Ok(ScriptStats::default()),
     }
+}
+
+/// The window's present mode: `VOXCAST_VIEW_PRESENT` (`fifo`, `mailbox`,
+/// `immediate`, `auto-vsync`, `auto-novsync`), else `auto-novsync`. The
+/// images come at the renderer's pace, not the display's, so waiting for a
+/// vertical blank only adds latency; where no tearing-free mode without
+/// waiting exists, wgpu falls back to FIFO.
+fn present_mode() -> Result<eframe::wgpu::PresentMode, ViewError> {
+    use eframe::wgpu::PresentMode;
+    let Some(v) = std::env::var_os("VOXCAST_VIEW_PRESENT") else {
+        return Ok(PresentMode::AutoNoVsync);
+    };
+    Ok(match v.to_string_lossy().as_ref() {
+        "fifo" => PresentMode::Fifo,
+        "mailbox" => PresentMode::Mailbox,
+        "immediate" => PresentMode::Immediate,
+        "auto-vsync" => PresentMode::AutoVsync,
+        "auto-novsync" => PresentMode::AutoNoVsync,
+        other => {
+            return Err(ViewError::Window(format!(
+                "VOXCAST_VIEW_PRESENT={other}: expected fifo, mailbox, immediate, auto-vsync or auto-novsync"
+            )))
+        }
+    })
 }
 
 /// The input as a series of more than one frame (with the frame to show

@@ -6,22 +6,54 @@
 //!   right-click (or select and press Delete) removes it;
 //! * colour bar: click adds a point with the colour already there (then pick
 //!   its colour below the editor); drag moves it; right-click removes it.
+//!
+//! The histogram and the colour bar are drawn as two textures, remade only
+//! when the histogram, the size or the colours change: as hundreds of
+//! anti-aliased rectangles they were re-tessellated every frame and cost a
+//! software rasteriser (lavapipe) about as much as the rest of the window.
 
 use crate::tf_model::{pick, Curve, LogHistogram, TfModel};
-use eframe::egui::{self, Color32, Pos2, Rect, Sense, Stroke, Vec2};
+use eframe::egui::{self, Color32, ColorImage, Pos2, Rect, Sense, Stroke, TextureHandle, Vec2};
 
 /// Radius (points) within which a click picks a control point.
 const PICK_RADIUS: f32 = 7.0;
 /// Height of the colour bar.
 const BAR_HEIGHT: f32 = 18.0;
 
+/// Steps of the colour bar.
+const BAR_STEPS: usize = 64;
+/// Grey of the histogram's background and bars.
+const HIST_BG: u8 = 24;
+const HIST_BAR: u8 = 70;
+
 /// What the widget keeps between frames.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Default)]
 pub struct TfWidgetState {
     /// The selected point (its colour is edited below the editor).
     pub selected: Option<(Curve, usize)>,
     /// The point being dragged.
     dragging: Option<(Curve, usize)>,
+    /// The histogram texture and what it was made from (heights, size).
+    histogram: Option<(Vec<f32>, [usize; 2], TextureHandle)>,
+    /// The colour bar texture and the colour points it was made from.
+    bar: Option<(Vec<[f32; 4]>, TextureHandle)>,
+}
+
+/// The histogram as `w`×`h` pixels: a bar per bin, `heights` (0…1) of the
+/// height, bins spread evenly over the width.
+pub fn histogram_pixels(heights: &[f32], w: usize, h: usize) -> ColorImage {
+    let n = heights.len().max(1);
+    let mut img = ColorImage::new([w, h], vec![Color32::from_gray(HIST_BG); w * h]);
+    for x in 0..w {
+        let bin = (x * n / w.max(1)).min(n - 1);
+        let v = heights.get(bin).copied().unwrap_or(0.0).clamp(0.0, 1.0);
+        // Rows from the bottom that the bar covers (rounded to whole pixels).
+        let rows = (v * h as f32).round() as usize;
+        for y in h - rows.min(h)..h {
+            img.pixels[y * w + x] = Color32::from_gray(HIST_BAR);
+        }
+    }
+    img
 }
 
 fn srgb(c: [f32; 3]) -> Color32 {
@@ -59,36 +91,48 @@ pub fn show(
         )
     };
 
-    painter.rect_filled(area, 2.0, Color32::from_gray(24));
-    if let Some(h) = histogram {
-        let n = h.heights.len().max(1) as f32;
-        for (i, &v) in h.heights.iter().enumerate() {
-            if v <= 0.0 {
-                continue;
+    let uv = Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0));
+    match histogram {
+        Some(h) => {
+            // One texel per screen pixel.
+            let ppp = ui.ctx().pixels_per_point();
+            let size = [
+                (area.width() * ppp).round().max(1.0) as usize,
+                (area.height() * ppp).round().max(1.0) as usize,
+            ];
+            let fresh = state
+                .histogram
+                .as_ref()
+                .is_some_and(|(hh, sz, _)| *sz == size && *hh == h.heights);
+            if !fresh {
+                let img = histogram_pixels(&h.heights, size[0], size[1]);
+                let tex = ui
+                    .ctx()
+                    .load_texture("tf-histogram", img, egui::TextureOptions::NEAREST);
+                state.histogram = Some((h.heights.clone(), size, tex));
             }
-            let x0 = area.min.x + i as f32 / n * area.width();
-            let x1 = area.min.x + (i + 1) as f32 / n * area.width();
-            painter.rect_filled(
-                Rect::from_min_max(Pos2::new(x0, to_y(v)), Pos2::new(x1, area.max.y)),
-                0.0,
-                Color32::from_gray(70),
-            );
+            if let Some((_, _, tex)) = &state.histogram {
+                painter.image(tex.id(), area, uv, Color32::WHITE);
+            }
+        }
+        None => {
+            painter.rect_filled(area, 0.0, Color32::from_gray(HIST_BG));
         }
     }
-    // The colour bar: the map's colour at each value.
-    let steps = 64;
-    for i in 0..steps {
-        let v0 = i as f32 / steps as f32;
-        let v1 = (i + 1) as f32 / steps as f32;
-        let c = model.tf().color_at((v0 + v1) * 0.5);
-        painter.rect_filled(
-            Rect::from_min_max(
-                Pos2::new(to_x(v0), bar.min.y),
-                Pos2::new(to_x(v1), bar.max.y),
-            ),
-            0.0,
-            srgb(c),
-        );
+    // The colour bar: the map's colour at each of `BAR_STEPS` values.
+    let colors = model.color();
+    if state.bar.as_ref().is_none_or(|(c, _)| c != colors) {
+        let px: Vec<Color32> = (0..BAR_STEPS)
+            .map(|i| srgb(model.tf().color_at((i as f32 + 0.5) / BAR_STEPS as f32)))
+            .collect();
+        let img = ColorImage::new([BAR_STEPS, 1], px);
+        let tex = ui
+            .ctx()
+            .load_texture("tf-colour-bar", img, egui::TextureOptions::NEAREST);
+        state.bar = Some((colors.to_vec(), tex));
+    }
+    if let Some((_, tex)) = &state.bar {
+        painter.image(tex.id(), bar, uv, Color32::WHITE);
     }
     // The opacity curve, held flat beyond the end points.
     let op = model.opacity();
@@ -236,4 +280,29 @@ pub fn show(
         }
     });
     changed
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn histogram_pixels_draw_one_bar_per_bin() {
+        // Two bins over 4×10 pixels: half height, then full height.
+        let img = histogram_pixels(&[0.5, 1.0], 4, 10);
+        let at = |x: usize, y: usize| img.pixels[y * 4 + x];
+        let bg = Color32::from_gray(HIST_BG);
+        let bar = Color32::from_gray(HIST_BAR);
+        for x in 0..2 {
+            assert_eq!(at(x, 4), bg, "above the first bar");
+            assert_eq!(at(x, 5), bar, "top of the first bar");
+            assert_eq!(at(x, 9), bar);
+        }
+        for x in 2..4 {
+            assert_eq!(at(x, 0), bar, "the full bar");
+        }
+        // Empty and out-of-range heights.
+        let img = histogram_pixels(&[0.0, 7.0, -1.0], 3, 2);
+        assert_eq!(img.pixels, vec![bg, bar, bg, bg, bar, bg]);
+    }
 }

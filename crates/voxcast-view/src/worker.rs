@@ -3,10 +3,17 @@
 //! yet started, so stale frames are skipped, never queued); the thread takes
 //! it, loads the frame of a series if it changed, renders, and sends the
 //! image back with a wake-up for the UI.
+//!
+//! A full-quality frame in progress is cancelled when a newer request
+//! arrives (the CPU renderer checks the flag per tile), so moving the camera
+//! right after the refinement started gets a preview at once instead of
+//! after the full frame. Previews are never cancelled: each is short, and
+//! it is the newest image there is until the next one is done.
 
 use crate::backend::{self, Backend, FrameRenderer};
 use crate::progressive::Quality;
 use crate::tf_model::LogHistogram;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
@@ -54,7 +61,15 @@ pub enum Reply {
         frame: usize,
         quality: Quality,
         image: Image,
+        /// `image` as 8-bit sRGB RGBA (converted here, off the UI thread).
+        srgba: Vec<u8>,
         stats: RenderStats,
+    },
+    /// A full-quality frame was abandoned for a newer request.
+    Cancelled {
+        generation: u64,
+        /// Seconds from its start to giving up.
+        seconds: f64,
     },
     /// A request failed.
     Error { generation: u64, message: String },
@@ -65,7 +80,7 @@ pub enum Source {
     /// One volume.
     Single,
     /// A series, loaded frame by frame with these options.
-    Series(Series, OpenOptions),
+    Series(Box<Series>, OpenOptions),
 }
 
 /// The one-place mailbox.
@@ -73,6 +88,8 @@ pub enum Source {
 pub struct Mailbox {
     state: Mutex<MailState>,
     wake: Condvar,
+    /// Raised to stop the full-quality frame in progress.
+    cancel: AtomicBool,
 }
 
 #[derive(Default)]
@@ -80,13 +97,19 @@ struct MailState {
     pending: Option<Request>,
     shutdown: bool,
     busy: bool,
+    /// The request being rendered is a full-quality frame.
+    full_running: bool,
 }
 
 impl Mailbox {
-    /// Leaves `req` for the thread, replacing a request not yet taken.
+    /// Leaves `req` for the thread, replacing a request not yet taken, and
+    /// cancels the full-quality frame in progress, if any.
     pub fn put(&self, req: Request) {
         let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
         s.pending = Some(req);
+        if s.full_running {
+            self.cancel.store(true, Ordering::Relaxed);
+        }
         self.wake.notify_one();
     }
 
@@ -99,9 +122,12 @@ impl Mailbox {
             }
             if let Some(r) = s.pending.take() {
                 s.busy = true;
+                s.full_running = r.quality == Quality::Full;
+                self.cancel.store(false, Ordering::Relaxed);
                 return Some(r);
             }
             s.busy = false;
+            s.full_running = false;
             s = self.wake.wait(s).unwrap_or_else(|e| e.into_inner());
         }
     }
@@ -159,8 +185,15 @@ impl Worker {
             .spawn(move || {
                 // Leave one core to the UI thread (and a software rasteriser
                 // such as lavapipe), or dragging stutters while frames render.
-                let threads = std::thread::available_parallelism()
-                    .map_or(1, |n| n.get().saturating_sub(1).max(1));
+                // `VOXCAST_VIEW_RENDER_THREADS` overrides.
+                let threads = std::env::var("VOXCAST_VIEW_RENDER_THREADS")
+                    .ok()
+                    .and_then(|v| v.parse::<usize>().ok())
+                    .filter(|&n| n > 0)
+                    .unwrap_or_else(|| {
+                        std::thread::available_parallelism()
+                            .map_or(1, |n| n.get().saturating_sub(1).max(1))
+                    });
                 let pool = rayon::ThreadPoolBuilder::new()
                     .num_threads(threads)
                     .thread_name(|i| format!("voxcast-view render {i}"))
@@ -264,7 +297,8 @@ impl Thread {
                     mailbox.put_back(req);
                     continue 'volume;
                 }
-                let result = renderer.render(&req.tf, &req.camera, &req.params);
+                let start = Instant::now();
+                let result = renderer.render(&req.tf, &req.camera, &req.params, &mailbox.cancel);
                 // A newer request that arrived during the render makes this
                 // frame stale only if it needs another volume; the image is
                 // still the best there is until the newer one is done.
@@ -273,8 +307,13 @@ impl Thread {
                         generation: req.generation,
                         frame: req.frame,
                         quality: req.quality,
+                        srgba: srgba8(&image),
                         image,
                         stats,
+                    }),
+                    Err(voxcast::Error::Cancelled) => self.send(Reply::Cancelled {
+                        generation: req.generation,
+                        seconds: start.elapsed().as_secs_f64(),
                     }),
                     Err(e) => self.send(Reply::Error {
                         generation: req.generation,
@@ -310,6 +349,19 @@ impl Thread {
         });
         Ok(())
     }
+}
+
+/// `image` as 8-bit sRGB RGBA, opaque.
+pub fn srgba8(image: &Image) -> Vec<u8> {
+    use voxcast::transfer::linear_to_srgb;
+    image
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            let [r, g, b] = [p[0], p[1], p[2]].map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8);
+            [r, g, b, 255]
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -353,6 +405,43 @@ mod tests {
     }
 
     #[test]
+    fn a_newer_request_cancels_the_full_frame_in_progress() {
+        let v = voxcast::builtin::open("sphere").unwrap();
+        let w = Worker::spawn(Backend::Cpu, Source::Single, 0, Arc::new(v), None, || {});
+        // Minutes of work uncancelled: 2000² pixels × 256 samples per pixel.
+        let mut big = request(1);
+        big.params.width = 2000;
+        big.params.height = 2000;
+        big.params.jitter = true;
+        big.params.spp = 256;
+        w.submit(big);
+        let first = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(matches!(first, Reply::Volume { .. }), "{first:?}");
+        // Wait until the thread has taken the big frame.
+        let start = Instant::now();
+        while !w.mailbox.state.lock().unwrap().full_running {
+            assert!(start.elapsed() < Duration::from_secs(60), "never started");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        std::thread::sleep(Duration::from_millis(50));
+        let mut small = request(2);
+        small.quality = Quality::Preview { divisor: 4 };
+        let asked = Instant::now();
+        w.submit(small);
+        let r = w.replies.recv_timeout(Duration::from_secs(30)).unwrap();
+        assert!(matches!(r, Reply::Cancelled { generation: 1, .. }), "{r:?}");
+        let r = w.replies.recv_timeout(Duration::from_secs(30)).unwrap();
+        assert!(matches!(r, Reply::Frame { generation: 2, .. }), "{r:?}");
+        assert!(
+            asked.elapsed() < Duration::from_secs(20),
+            "the preview took {:?}",
+            asked.elapsed()
+        );
+        // Previews are not cancelled by newer requests.
+        assert!(!w.mailbox.cancel.load(Ordering::Relaxed));
+    }
+
+    #[test]
     fn thread_renders_and_reports_the_histogram_first() {
         let v = voxcast::builtin::open("sphere").unwrap();
         let w = Worker::spawn(Backend::Cpu, Source::Single, 0, Arc::new(v), None, || {});
@@ -373,10 +462,20 @@ mod tests {
         );
         match &got[1] {
             Reply::Frame {
-                generation, image, ..
+                generation,
+                image,
+                srgba,
+                ..
             } => {
                 assert_eq!(*generation, 7);
                 assert_eq!((image.width, image.height), (24, 16));
+                // The bytes are exactly `to_srgb8`'s, opaque.
+                let rgb = image.to_srgb8();
+                assert_eq!(srgba.len(), 24 * 16 * 4);
+                for (a, b) in srgba.chunks(4).zip(rgb.chunks(3)) {
+                    assert_eq!(&a[..3], b);
+                    assert_eq!(a[3], 255);
+                }
             }
             r => panic!("expected a frame, got {r:?}"),
         }

@@ -27,6 +27,10 @@ pub enum Error {
     /// Invalid parameters that did not come from a file (command line, scene).
     #[error("{0}")]
     Invalid(String),
+    /// A render stopped early because its cancel flag was raised
+    /// ([`crate::render::Renderer::render_cancellable`]).
+    #[error("the render was cancelled")]
+    Cancelled,
 }
 
 /// Shorthand for results of this library.

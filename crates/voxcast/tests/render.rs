@@ -251,3 +251,49 @@ fn nan_voxels_are_empty() {
     let img = draw(&nan_vol, &tf, &CameraParams::default(), &params(16, 16));
     assert!(img.pixels.iter().any(|p| p[3] > 0.5));
 }
+
+/// A raised cancel flag ends a render within a few tiles with
+/// `Error::Cancelled`; an unraised one changes nothing.
+#[test]
+fn cancelled_render_stops_early() {
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+    use voxcast::render::Renderer;
+    let v = voxcast::builtin::open("sphere").unwrap();
+    let tf = voxcast::transfer::TransferFunction::preset("grayscale").unwrap();
+    let cam = voxcast::camera::CameraParams::default();
+    let r = Renderer::new(&v, [0.0, 255.0]).unwrap();
+    for method in ["uniform", "path"] {
+        let params = RenderParams {
+            width: 320,
+            height: 320,
+            method: voxcast::render::Method::parse(method).unwrap(),
+            ..Default::default()
+        };
+        // 20×20 tiles; the flag goes up when the first one is done.
+        let flag = AtomicBool::new(false);
+        let done = AtomicUsize::new(0);
+        let progress = |n: usize, _total: usize| {
+            done.fetch_max(n, Ordering::Relaxed);
+            flag.store(true, Ordering::Relaxed);
+        };
+        let res = r.render_cancellable(&tf, &cam, &params, &progress, &flag);
+        assert!(
+            matches!(res, Err(voxcast::Error::Cancelled)),
+            "{method}: {:?}",
+            res.map(|_| ())
+        );
+        let threads = rayon::current_num_threads();
+        assert!(
+            done.load(Ordering::Relaxed) <= threads,
+            "{method}: {} tiles finished after the flag went up ({threads} threads)",
+            done.load(Ordering::Relaxed)
+        );
+        // Not raised: the same image as `render`.
+        let never = AtomicBool::new(false);
+        let (a, _) = r
+            .render_cancellable(&tf, &cam, &params, &|_, _| {}, &never)
+            .unwrap();
+        let (b, _) = r.render(&tf, &cam, &params, &|_, _| {}).unwrap();
+        assert_eq!(a.pixels, b.pixels, "{method}");
+    }
+}

@@ -53,8 +53,14 @@ pub fn summary(path: &Path) -> Result<Vec<String>> {
     Err(no_feature(path))
 }
 
+/// The `Times` strings of the file, one per time index.
+#[cfg(not(feature = "wrf"))]
+pub fn times(path: &Path) -> Result<Vec<String>> {
+    Err(no_feature(path))
+}
+
 #[cfg(feature = "wrf")]
-pub use imp::{column_heights, read, read_native, summary};
+pub use imp::{column_heights, read, read_native, summary, times};
 
 #[cfg(feature = "wrf")]
 mod imp {
@@ -87,8 +93,14 @@ mod imp {
         v
     }
 
+    /// The `Times` strings of the file at `path`, one per time index.
+    pub fn times(path: &Path) -> Result<Vec<String>> {
+        let f = open(path)?;
+        times_of(path, &f)
+    }
+
     /// The `Times` strings (one per time index).
-    fn times(path: &Path, f: &netcdf::File) -> Result<Vec<String>> {
+    fn times_of(path: &Path, f: &netcdf::File) -> Result<Vec<String>> {
         let n = f.dimension_len("Time").unwrap_or(0);
         let Some(v) = f.variable("Times") else {
             return Ok((0..n).map(|i| format!("index {i}")).collect());
@@ -326,7 +338,7 @@ mod imp {
             "3D fields (--var, A+B sums): {}",
             mass_variables(&f).join(", ")
         )];
-        for (i, t) in times(path, &f)?.iter().enumerate() {
+        for (i, t) in times_of(path, &f)?.iter().enumerate() {
             lines.push(format!("time {i}: {t}"));
         }
         if let (Some(dx), Some(dy)) = (global_f32(&f, "DX"), global_f32(&f, "DY")) {
@@ -409,5 +421,30 @@ mod tests {
         let lines = summary(&p).unwrap();
         assert!(lines.iter().any(|l| l.contains("QGRAUP")));
         assert_eq!(lines.iter().filter(|l| l.starts_with("time ")).count(), 4);
+    }
+
+    #[test]
+    fn series_lists_the_time_indices_with_their_names() {
+        let Some(p) = data_path("wrf_salem/wrf_d01_allvars_cropped.nc") else {
+            return;
+        };
+        let opts = OpenOptions::default();
+        let s = crate::volume::Series::open(&p, &opts).unwrap();
+        assert_eq!(s.len(), 4);
+        assert_eq!(s.times(), vec![0.0, 1.0, 2.0, 3.0]);
+        assert_eq!(s.labels, times(&p).unwrap());
+        assert!(s.label(1).unwrap().contains(':'), "{:?}", s.labels);
+        // Frame 1 is time index 1.
+        let v = s.load(1, &opts).unwrap();
+        let w = read(
+            &p,
+            &OpenOptions {
+                time: Some(1.0),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(v.stats().max, w.stats().max);
+        assert_eq!(v.time, Some(1.0));
     }
 }

@@ -36,6 +36,7 @@ use optics::{AbsorptionOnly, EmissionAbsorption, EmissionOnly, Optics};
 use ray::RayCtx;
 use serde::{Deserialize, Serialize};
 use shading::BlinnPhong;
+use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -510,6 +511,23 @@ impl<'v> Renderer<'v> {
         params: &RenderParams,
         progress: &(dyn Fn(usize, usize) + Sync),
     ) -> Result<(Image, RenderStats)> {
+        self.render_cancellable(tf, camera, params, progress, &AtomicBool::new(false))
+    }
+
+    /// [`Renderer::render`] that stops early, with [`Error::Cancelled`],
+    /// once `cancel` is raised (from another thread, or from `progress`).
+    /// The flag is read once per 16×16 tile, so a raised flag ends the
+    /// render within about one tile's time per thread, and the per-sample
+    /// loop does not change. A render that finished all its tiles returns
+    /// its image even if the flag was raised at the very end.
+    pub fn render_cancellable(
+        &self,
+        tf: &TransferFunction,
+        camera: &CameraParams,
+        params: &RenderParams,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        cancel: &AtomicBool,
+    ) -> Result<(Image, RenderStats)> {
         params.validate()?;
         if let Some(l) = &camera.look_at {
             l.validate().map_err(Error::invalid)?;
@@ -545,8 +563,16 @@ impl<'v> Renderer<'v> {
                     params.method.name()
                 )));
             }
-            let (image, mut stats) =
-                path::render(volume, self.window, &derived.blocks, cam, params, progress);
+            let (image, mut stats) = path::render(
+                volume,
+                self.window,
+                &derived.blocks,
+                cam,
+                params,
+                progress,
+                cancel,
+            )
+            .ok_or(Error::Cancelled)?;
             stats.seconds = start.elapsed().as_secs_f64();
             return Ok((image, stats));
         }
@@ -574,6 +600,7 @@ impl<'v> Renderer<'v> {
             params,
             unit,
             progress,
+            cancel,
             blocks: &derived.blocks,
             empty: derived.blocks.empty_flags(tf),
             max_gradient,
@@ -584,7 +611,9 @@ impl<'v> Renderer<'v> {
             }),
             tree,
         };
-        let (image, mut stats) = volume.visit(self.window[0], self.window[1], job);
+        let (image, mut stats) = volume
+            .visit(self.window[0], self.window[1], job)
+            .ok_or(Error::Cancelled)?;
         stats.seconds = start.elapsed().as_secs_f64();
         Ok((image, stats))
     }
@@ -602,11 +631,12 @@ struct Job<'a> {
     params: &'a RenderParams,
     unit: f32,
     progress: &'a (dyn Fn(usize, usize) + Sync),
+    cancel: &'a AtomicBool,
     surface: Option<surface::SurfaceCtx<'a>>,
 }
 
 impl GridVisitor for Job<'_> {
-    type Output = (Image, RenderStats);
+    type Output = Option<(Image, RenderStats)>;
     fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Self::Output {
         match self.params.optical {
             OpticalModel::AbsorptionOnly => self.run::<T, AbsorptionOnly>(grid),
@@ -617,7 +647,7 @@ impl GridVisitor for Job<'_> {
 }
 
 impl Job<'_> {
-    fn run<T: Voxel, O: Optics>(&self, grid: &Grid<'_, T>) -> (Image, RenderStats) {
+    fn run<T: Voxel, O: Optics>(&self, grid: &Grid<'_, T>) -> Option<(Image, RenderStats)> {
         let (w, h) = (self.params.width, self.params.height);
         let (box_lo, box_hi) = self.volume.sample_box();
         let p = self.params;
@@ -697,6 +727,7 @@ impl Job<'_> {
             w,
             h,
             self.progress,
+            self.cancel,
             Vec::<(Vec3, f32)>::new,
             |scratch, stats, x, y| {
                 let (o, d) = self.cam.ray(x, y);

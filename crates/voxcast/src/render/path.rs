@@ -214,7 +214,8 @@ pub(super) fn render(
     cam: Camera,
     params: &RenderParams,
     progress: &(dyn Fn(usize, usize) + Sync),
-) -> (Image, RenderStats) {
+    cancel: &std::sync::atomic::AtomicBool,
+) -> Option<(Image, RenderStats)> {
     let medium = &params.medium;
     let majorant = Majorant::new(blocks, medium.scale, medium.majorant);
     let default_lights;
@@ -232,6 +233,7 @@ pub(super) fn render(
         cam,
         params,
         progress,
+        cancel,
     };
     volume.visit(window[0], window[1], job)
 }
@@ -244,10 +246,11 @@ struct Job<'a> {
     cam: Camera,
     params: &'a RenderParams,
     progress: &'a (dyn Fn(usize, usize) + Sync),
+    cancel: &'a std::sync::atomic::AtomicBool,
 }
 
 impl GridVisitor for Job<'_> {
-    type Output = (Image, RenderStats);
+    type Output = Option<(Image, RenderStats)>;
     fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Self::Output {
         let phase = self.medium.phase;
         phase.visit(WithGrid { job: self, grid })
@@ -260,7 +263,7 @@ struct WithGrid<'a, 'g, T> {
 }
 
 impl<T: Voxel> PhaseVisitor for WithGrid<'_, '_, T> {
-    type Output = (Image, RenderStats);
+    type Output = Option<(Image, RenderStats)>;
     fn visit<P: Phase>(self, phase: P) -> Self::Output {
         let job = &self.job;
         let dims = job.volume.dims();
@@ -295,6 +298,7 @@ impl<T: Voxel> PhaseVisitor for WithGrid<'_, '_, T> {
             p.width,
             p.height,
             job.progress,
+            job.cancel,
             Work::default,
             |work, stats, x, y| {
                 let mut sum = Vec3::ZERO;

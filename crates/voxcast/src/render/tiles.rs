@@ -6,7 +6,7 @@
 use super::stats::RenderStats;
 use crate::image::Image;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Side of a square tile in pixels.
 pub(super) const TILE: u32 = 16;
@@ -15,23 +15,32 @@ pub(super) const TILE: u32 = 16;
 /// with `state`, calls `pixel(state, stats, x, y)` for its pixels (linear
 /// RGBA), then `finish(state, stats)`; `progress(done, total)` is called
 /// after each tile. Generic, so the per-pixel call is inlined.
+///
+/// `cancel` is read once per tile (never per pixel or sample): once it is
+/// raised, the tiles not yet started are skipped and `None` is returned.
 pub(super) fn render_tiles<S>(
     w: u32,
     h: u32,
     progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
     state: impl Fn() -> S + Sync,
     pixel: impl Fn(&mut S, &mut RenderStats, u32, u32) -> [f32; 4] + Sync,
     finish: impl Fn(S, &mut RenderStats) + Sync,
-) -> (Image, RenderStats) {
+) -> Option<(Image, RenderStats)> {
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
     let total = (tiles_x * tiles_y) as usize;
     let done = AtomicUsize::new(0);
+    let skipped = AtomicBool::new(false);
     let tiles: Vec<(u32, u32, Vec<[f32; 4]>, RenderStats)> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|ti| {
             let (tx, ty) = (ti % tiles_x * TILE, ti / tiles_x * TILE);
             let mut stats = RenderStats::default();
+            if cancel.load(Ordering::Relaxed) {
+                skipped.store(true, Ordering::Relaxed);
+                return (tx, ty, Vec::new(), stats);
+            }
             let mut s = state();
             let mut px = Vec::with_capacity((TILE * TILE) as usize);
             for y in ty..(ty + TILE).min(h) {
@@ -45,6 +54,9 @@ pub(super) fn render_tiles<S>(
             (tx, ty, px, stats)
         })
         .collect();
+    if skipped.load(Ordering::Relaxed) {
+        return None;
+    }
     let mut image = Image::new(w, h);
     let mut stats = RenderStats::default();
     for (tx, ty, px, s) in tiles {
@@ -54,5 +66,55 @@ pub(super) fn render_tiles<S>(
             image.set(tx + i as u32 % tw, ty + i as u32 / tw, p);
         }
     }
-    (image, stats)
+    Some((image, stats))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_raised_flag_skips_the_tiles_left() {
+        let never = AtomicBool::new(false);
+        let (img, _) = render_tiles(
+            40,
+            20,
+            &|_, _| {},
+            &never,
+            || (),
+            |_, _, x, _| [x as f32, 0.0, 0.0, 1.0],
+            |_, _| {},
+        )
+        .expect("not cancelled");
+        assert_eq!((img.width, img.height), (40, 20));
+        // Raised before the start: nothing is drawn.
+        let raised = AtomicBool::new(true);
+        let drawn = AtomicUsize::new(0);
+        let r = render_tiles(
+            64,
+            64,
+            &|_, _| {},
+            &raised,
+            || (),
+            |_, _, _, _| {
+                drawn.fetch_add(1, Ordering::Relaxed);
+                [0.0; 4]
+            },
+            |_, _| {},
+        );
+        assert!(r.is_none());
+        assert_eq!(drawn.load(Ordering::Relaxed), 0);
+        // Raised by the first tile: the frame is abandoned part-way.
+        let flag = AtomicBool::new(false);
+        let r = render_tiles(
+            256,
+            256,
+            &|_, _| flag.store(true, Ordering::Relaxed),
+            &flag,
+            || (),
+            |_, _, _, _| [0.0; 4],
+            |_, _| {},
+        );
+        assert!(r.is_none());
+    }
 }

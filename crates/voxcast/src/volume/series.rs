@@ -59,6 +59,9 @@ pub struct Series {
     pub source: PathBuf,
     pub title: Option<String>,
     pub time_units: Option<String>,
+    /// A name for each frame's time where the file has one (WRF's `Times`
+    /// strings); empty otherwise.
+    pub labels: Vec<String>,
     frames: Vec<Frame>,
 }
 
@@ -135,6 +138,7 @@ impl Series {
             source: dir.to_path_buf(),
             title: m.title,
             time_units: m.time_units,
+            labels: Vec::new(),
             frames,
         })
     }
@@ -149,6 +153,7 @@ impl Series {
             source: path.to_path_buf(),
             title: None,
             time_units,
+            labels: Vec::new(),
             frames: times
                 .iter()
                 .map(|&time| Frame::TimeOf {
@@ -211,6 +216,15 @@ impl Series {
                 let times = crate::io::fds::times(path, opts)?;
                 Series::of_times(path, &times, Some("s".into()))
             }
+            // WRF: one frame per time index (a WRF file's `--time` is the
+            // index), labelled with the file's `Times` strings.
+            Format::Wrf => {
+                let labels = crate::io::wrf::times(path)?;
+                let times: Vec<f64> = (0..labels.len()).map(|i| i as f64).collect();
+                let mut s = Series::of_times(path, &times, Some("index".into()))?;
+                s.labels = labels;
+                Ok(s)
+            }
             _ => Series::of_files(path, vec![path.to_path_buf()]),
         }
     }
@@ -225,6 +239,7 @@ impl Series {
             source: source.to_path_buf(),
             title: None,
             time_units: None,
+            labels: Vec::new(),
             frames: files
                 .into_iter()
                 .enumerate()
@@ -286,6 +301,11 @@ impl Series {
         };
         v.time = Some(f.time());
         Ok(v)
+    }
+
+    /// The name of frame `i`'s time, where the file has one.
+    pub fn label(&self, i: usize) -> Option<&str> {
+        self.labels.get(i).map(String::as_str)
     }
 
     /// The file frame `i` is read from.
