@@ -154,7 +154,7 @@ fn pick_device(
         args::DeviceArg::Gpu => {
             if !voxcast_gpu::supports(scene.render.method) {
                 bail!(
-                    "--device gpu: method `{}` is not implemented on the GPU (it renders uniform, adaptive, adaptive-max, jitter, stratified, mc and single-scatter); use --device cpu or auto",
+                    "--device gpu: method `{}` is not implemented on the GPU (it renders uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter); use --device cpu or auto",
                     scene.render.method.name()
                 );
             }

@@ -45,8 +45,9 @@
 //!
 //! # Supported
 //!
-//! Methods `uniform`, `adaptive`, `adaptive-max` (each with `+grouped` and
-//! `+noskip`), `jitter`, `stratified`, `mc` (progressive over `spp`), the
+//! Methods `uniform`, `adaptive`, `adaptive-max`, `threshold` (each with
+//! `+grouped` and `+noskip`), `jitter`, `stratified`, `mc` (progressive over
+//! `spp`, in dispatches of at most eight passes), the
 //! three optical models, shading, both compositing orders (back to front is
 //! computed front to back without early termination, which is the same
 //! sum); `single-scatter` (optical model 4: delta tracking, ratio-tracked
@@ -58,7 +59,7 @@
 //! ([`GpuRenderer::with_geometry`]); volumes larger than the device's 3D
 //! texture limit, split into up to eight bricks ([`Bricking`]).
 //!
-//! Not yet: `threshold`, `importance`, `lod`, `path`, triangle meshes (OBJ),
+//! Not yet: `importance`, `lod`, `path`, triangle meshes (OBJ),
 //! volumes that need more than eight bricks; each is refused with an error
 //! naming it.
 
@@ -339,7 +340,19 @@ struct Params {
     bricks: [u32; 4],
     /// Cells per brick along each axis.
     brick_cells: [u32; 4],
+    /// The passes of one dispatch: first, end (exclusive).
+    chunk: [u32; 4],
+    /// Threshold: range bounds, steps of ranges 0 and 1 (voxels).
+    thresh: [f32; 4],
+    /// Threshold: step of range 2 (voxels).
+    thresh2: [f32; 4],
 }
+
+/// Passes per dispatch of the progressive methods: a render of many passes
+/// is split into dispatches of at most this many, each adding to the sums
+/// the one before left, so no single dispatch runs long enough to trip a
+/// GPU watchdog (about 2 s on desktop drivers).
+const PASSES_PER_DISPATCH: u32 = 8;
 
 /// Texture slots for bricks (bindings 1 and 9…15).
 const MAX_BRICKS: usize = 8;
@@ -362,9 +375,10 @@ fn method_code(m: Method) -> Result<u32, GpuError> {
         Method::Mc => 4,
         Method::Stratified => 5,
         Method::SingleScatter => 6,
+        Method::Threshold => 7,
         other => {
             return Err(GpuError::Unsupported(format!(
-                "method `{}` (the GPU renders uniform, adaptive, adaptive-max, jitter, stratified, mc and single-scatter; use --device cpu for `{}`)",
+                "method `{}` (the GPU renders uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter; use --device cpu for `{}`)",
                 other.name(),
                 other.name()
             )))
@@ -373,8 +387,8 @@ fn method_code(m: Method) -> Result<u32, GpuError> {
 }
 
 /// Whether the GPU back end renders `method`: `uniform`, `adaptive`,
-/// `adaptive-max`, `jitter`, `stratified`, `mc` and `single-scatter` (not
-/// `threshold`, `importance`, `lod`, `path`). Opaque geometry is a separate
+/// `adaptive-max`, `threshold`, `jitter`, `stratified`, `mc` and
+/// `single-scatter` (not `importance`, `lod`, `path`). Opaque geometry is a separate
 /// question, [`GpuRenderer::supports_geometry`]: boxes and planes yes,
 /// triangle meshes no (`single-scatter` takes no geometry on either back
 /// end).
@@ -1039,7 +1053,7 @@ impl GpuRenderer {
         let sm = voxcast::render::rng::splitmix(seed);
         let scene = SceneData::new(geometry, &cam, params, &self.volume, &blocks.grid);
         let bg = params.background.map(srgb_to_linear);
-        let p = Params {
+        let mut p = Params {
             eye: [
                 cam.eye.x,
                 cam.eye.y,
@@ -1104,8 +1118,15 @@ impl GpuRenderer {
                 self.bricking.cells[2] as u32,
                 0,
             ],
+            chunk: [0, passes, 0, 0],
+            thresh: [
+                params.threshold.bounds[0],
+                params.threshold.bounds[1],
+                params.threshold.steps[0],
+                params.threshold.steps[1],
+            ],
+            thresh2: [params.threshold.steps[2], 0.0, 0.0, 0.0],
         };
-        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
         let records = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("shapes and lights"),
             contents: bytemuck::cast_slice(&scene.records),
@@ -1193,23 +1214,52 @@ impl GpuRenderer {
                 tex(15, 7),
             ],
         });
-        let mut enc = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
+        // One submit per chunk of passes (queue order keeps each chunk's
+        // parameters with its dispatch); the last one copies the sums out.
+        let mut first = 0;
+        while first < passes {
+            let end = (first + PASSES_PER_DISPATCH).min(passes);
+            p.chunk = [first, end, 0, 0];
+            queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
+            let mut enc = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            if end == passes {
+                enc.copy_buffer_to_buffer(out_px, 0, read_px, 0, out_bytes);
+                enc.copy_buffer_to_buffer(out_stats, 0, read_stats, 0, stats_bytes);
+            }
+            queue.submit([enc.finish()]);
+            first = end;
         }
-        enc.copy_buffer_to_buffer(out_px, 0, read_px, 0, out_bytes);
-        enc.copy_buffer_to_buffer(out_stats, 0, read_stats, 0, stats_bytes);
-        queue.submit([enc.finish()]);
         let px = read_back(device, read_px)?;
         let sv = read_back(device, read_stats)?;
-        let pixels_f: &[[f32; 4]] = bytemuck::cast_slice(&px);
+        // The sums over the passes → the average, over the background (the
+        // CPU's arithmetic: linear radiance, opaque, for single-scatter).
+        let sums: &[[f32; 4]] = bytemuck::cast_slice(&px);
+        let n = passes as f32;
+        let bg_v = glam::Vec3::from(bg);
+        let pixels_f = sums
+            .iter()
+            .map(|&s| {
+                let s = glam::Vec4::from(s);
+                if physical {
+                    let c = s.truncate() / n;
+                    [c.x, c.y, c.z, 1.0]
+                } else {
+                    let c = s / n;
+                    let rgb = c.truncate() + bg_v * (1.0 - c.w);
+                    [rgb.x, rgb.y, rgb.z, c.w]
+                }
+            })
+            .collect();
         let image = Image {
             width: w,
             height: h,
-            pixels: pixels_f.to_vec(),
+            pixels: pixels_f,
         };
         let words: &[u32] = bytemuck::cast_slice(&sv);
         let mut sum = [0u64; 6];

@@ -36,6 +36,9 @@ struct Params {
     med_flags: vec4<u32>,    // has infinite lights
     bricks: vec4<u32>,       // bricks per axis; w: count
     brick_cells: vec4<u32>,  // cells per brick per axis
+    chunk: vec4<u32>,        // this dispatch's passes: first, end
+    thresh: vec4<f32>,       // threshold: range bounds a, b; steps 0, 1 (voxels)
+    thresh2: vec4<f32>,      // threshold: step 2 (voxels)
 };
 
 // flags
@@ -52,6 +55,7 @@ const M_JITTER: u32 = 3u;
 const M_MC: u32 = 4u;
 const M_STRATIFIED: u32 = 5u;
 const M_SINGLE: u32 = 6u;
+const M_THRESHOLD: u32 = 7u;
 
 const LUT_SIZE: u32 = 4096u;
 const BIG: f32 = 3.0e38;
@@ -278,10 +282,15 @@ struct Eval {
 
 // ray.rs evaluate: reconstruct, classify, shade.
 fn evaluate(p: vec3<f32>) -> Eval {
-    var e: Eval;
-    e.entry = -1;
     let v = sample(p);
     n_interp += 1u;
+    return classify(p, v);
+}
+
+// Classifies and shades the reconstructed value v at p.
+fn classify(p: vec3<f32>, v: f32) -> Eval {
+    var e: Eval;
+    e.entry = -1;
     let i = lut_index(v);
     if i < 0 {
         return e;
@@ -506,6 +515,68 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
     if pend {
         let alpha = alpha_for(pend_entry, max(t_out, pend_t) - pend_t);
         return alpha > 0.0 && add(pend_rgb, alpha);
+    }
+    return false;
+}
+
+// ray.rs march_threshold (Zeng et al. 2018): the step after each sample
+// follows the range its (head) value falls in; skipping an empty block
+// restarts the march on the base grid t0 + n·step.
+fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> bool {
+    let grouped = (P.size.w & F_GROUPED) != 0u;
+    let skip = (P.size.w & F_SKIP) != 0u;
+    let unit = P.origin_w.w;
+    let step = P.inv_spacing.w * unit;
+    var t = t0;
+    var head_value = 0.0;
+    var head = Eval(-1, vec3<f32>(0.0));
+    var count = 0u;
+    var w = walker_new(o, d, t_in, t_out);
+    loop {
+        if w.t >= w.t_out {
+            break;
+        }
+        let st = walker_next(&w);
+        if skip && empty[st.index] != 0u {
+            continue;
+        }
+        if t < st.ta {
+            t = t0 + ceil((st.ta - t0) / step) * step;
+            count = 0u;
+        }
+        loop {
+            if !(t < st.tb) {
+                break;
+            }
+            n_samples += 1u;
+            let is_head = !grouped || (count % group_size(t, t_out)) == 0u;
+            count += 1u;
+            let p = o + d * t;
+            if is_head {
+                head_value = sample(p);
+                n_interp += 1u;
+                head = classify(p, head_value);
+            }
+            var r_step = P.thresh2.x;
+            if head_value < P.thresh.x {
+                r_step = P.thresh.z;
+            } else if head_value < P.thresh.y {
+                r_step = P.thresh.w;
+            }
+            let s = r_step * unit;
+            if head.entry >= 0 {
+                var alpha: f32;
+                if t + s <= t_out {
+                    alpha = 1.0 - exp(-lut_entry(head.entry).w * r_step);
+                } else {
+                    alpha = alpha_for(head.entry, t_out - t);
+                }
+                if alpha > 0.0 && add(head.rgb, alpha) {
+                    return true;
+                }
+            }
+            t += s;
+        }
     }
     return false;
 }
@@ -1067,8 +1138,13 @@ fn main(
     workgroupBarrier();
     let width = P.size.x;
     let height = P.size.y;
-    let passes = P.size.z;
+    // This dispatch renders passes first…end − 1 of P.size.z, adding to the
+    // sums the dispatches before it left in out_px (the host divides).
+    let first = P.chunk.x;
+    let end = P.chunk.y;
+    let passes = end - first;
     let method = P.counts.w;
+    let idx = gid.y * width + gid.x;
     var rays = 0u;
     var hits = 0u;
     var terminated = 0u;
@@ -1078,7 +1154,10 @@ fn main(
     if gid.x < width && gid.y < height && method == M_SINGLE {
         // path.rs render: spp camera rays with a random position in the pixel.
         var sum = vec3<f32>(0.0);
-        for (var pass_i = 0u; pass_i < passes; pass_i += 1u) {
+        if first > 0u {
+            sum = out_px[idx].xyz;
+        }
+        for (var pass_i = first; pass_i < end; pass_i += 1u) {
             var rng = rng_for_pixel(gid.x, gid.y, pass_i);
             let u = rng_uniform(&rng);
             let v = rng_uniform(&rng);
@@ -1089,7 +1168,7 @@ fn main(
             sum += li_single(r.o, r.d, &rng);
         }
         rays = passes;
-        out_px[gid.y * width + gid.x] = vec4<f32>(sum / f32(passes), 1.0);
+        out_px[idx] = vec4<f32>(sum, 1.0);
     } else if gid.x < width && gid.y < height {
         // Camera::ray_at through the pixel centre.
         let r = camera_ray(f32(gid.x) + 0.5, f32(gid.y) + 0.5);
@@ -1114,6 +1193,9 @@ fn main(
             }
         }
         var sum = vec4<f32>(0.0);
+        if first > 0u {
+            sum = out_px[idx];
+        }
         rays = passes;
         if te.y > te.x && !(hit.ok && hit.t <= te.x) {
             if hit.ok {
@@ -1121,7 +1203,7 @@ fn main(
             }
             hits = passes;
             let step = P.inv_spacing.w * P.origin_w.w;
-            for (var pass_i = 0u; pass_i < passes; pass_i += 1u) {
+            for (var pass_i = first; pass_i < end; pass_i += 1u) {
                 acc_c = vec3<f32>(0.0);
                 acc_a = 0.0;
                 var t0 = te.x;
@@ -1133,6 +1215,8 @@ fn main(
                     stop = march_mc(o, d, te.x, te.y, gid.xy, pass_i);
                 } else if method == M_STRATIFIED {
                     stop = march_stratified(o, d, te.x, te.y, gid.xy, pass_i);
+                } else if method == M_THRESHOLD {
+                    stop = march_threshold(o, d, t0, te.x, te.y);
                 } else {
                     stop = march_blocks(o, d, t0, te.x, te.y);
                 }
@@ -1148,11 +1232,11 @@ fn main(
                 sum += vec4<f32>(acc_c, acc_a);
             }
         } else if hit.ok {
-            sum = vec4<f32>(surf, 1.0) * f32(passes);
+            for (var pass_i = first; pass_i < end; pass_i += 1u) {
+                sum += vec4<f32>(surf, 1.0);
+            }
         }
-        let c = sum / f32(passes);
-        let rgb = c.xyz + P.background.xyz * (1.0 - c.w);
-        out_px[gid.y * width + gid.x] = vec4<f32>(rgb, c.w);
+        out_px[idx] = sum;
     }
     atomicAdd(&wg_stats[0], rays);
     atomicAdd(&wg_stats[1], hits);
@@ -1163,6 +1247,11 @@ fn main(
     workgroupBarrier();
     if lid < 6u {
         let wg = wid.y * nwg.x + wid.x;
-        out_stats[wg * 6u + lid] = atomicLoad(&wg_stats[lid]);
+        let v = atomicLoad(&wg_stats[lid]);
+        if first > 0u {
+            out_stats[wg * 6u + lid] += v;
+        } else {
+            out_stats[wg * 6u + lid] = v;
+        }
     }
 }
