@@ -430,17 +430,19 @@ fn fds_room_geometry_matches_the_cpu() {
         );
         assert!(lit > 96 * 72 / 4, "{spec}: the CPU image shows no room");
         assert!(psnr >= 40.0, "fds room {spec}: PSNR {psnr:.2} dB < 40");
-        assert_eq!(
-            sa.rays_hit, sb.rays_hit,
-            "{spec}: rays that reach the smoke"
+        // Rays that reach the smoke, up to rays that graze a shape's or the
+        // volume's edge and round to the other side.
+        let (x, y) = (sa.rays_hit as f64, sb.rays_hit as f64);
+        assert!(
+            (x - y).abs() <= 0.002 * x.max(y) + 2.0,
+            "{spec}: rays that reach the smoke cpu {x} gpu {y}"
         );
     }
     // The physically based methods refuse geometry, as on the CPU.
     scene.render.method = voxcast::render::Method::SingleScatter;
-    let e = gpu
-        .render(&prepared.tf, &scene.camera, &scene.render)
-        .err()
-        .expect("single-scatter with geometry is refused");
+    let Err(e) = gpu.render(&prepared.tf, &scene.camera, &scene.render) else {
+        panic!("single-scatter with geometry is refused");
+    };
     assert!(e.to_string().contains("geometry"), "{e}");
 }
 
@@ -544,9 +546,7 @@ fn bricked_volumes_match_unbricked() {
         assert!(b.len() > 1, "{rel}: not bricked");
         let dims = prepared.volume.dims();
         assert!(
-            (0..3).all(
-                |a| b.cells[a] + 1 <= limit as usize && b.counts[a] * b.cells[a] + 1 >= dims[a]
-            ),
+            (0..3).all(|a| b.cells[a] < limit as usize && b.counts[a] * b.cells[a] + 1 >= dims[a]),
             "{rel}: {b:?} for {dims:?}"
         );
         for (spec, spp) in [("uniform", 1), ("adaptive+grouped", 1), ("mc", 2)] {
