@@ -423,8 +423,10 @@ pub struct RenderArgs {
     /// such as lavapipe included; WGPU_BACKEND is honoured; with no adapter
     /// this is an error naming what was tried, never a silent fallback), or
     /// auto (a hardware GPU if there is one, else the CPU; the choice is
-    /// printed). The GPU renders uniform, adaptive, adaptive-max, jitter,
-    /// stratified and mc, and gives the same picture as the CPU (PSNR ≥ 40 dB).
+    /// printed). The GPU renders uniform, adaptive, adaptive-max, threshold,
+    /// jitter, stratified, mc and single-scatter, opaque boxes and planes (not
+    /// OBJ meshes), volumes beyond its 3D texture limit in bricks, and gives
+    /// the same picture as the CPU (PSNR ≥ 40 dB).
     #[arg(long, value_enum, default_value = "cpu", help_heading = "Device")]
     pub device: DeviceArg,
 }
@@ -489,8 +491,10 @@ pub struct BenchArgs {
     /// such as lavapipe included; WGPU_BACKEND is honoured; with no adapter
     /// this is an error naming what was tried, never a silent fallback), or
     /// auto (a hardware GPU if there is one, else the CPU; the choice is
-    /// printed). The GPU renders uniform, adaptive, adaptive-max, jitter,
-    /// stratified and mc, and gives the same picture as the CPU (PSNR ≥ 40 dB).
+    /// printed). The GPU renders uniform, adaptive, adaptive-max, threshold,
+    /// jitter, stratified, mc and single-scatter, opaque boxes and planes (not
+    /// OBJ meshes), volumes beyond its 3D texture limit in bricks, and gives
+    /// the same picture as the CPU (PSNR ≥ 40 dB).
     #[arg(long, value_enum, default_value = "cpu", help_heading = "Device")]
     pub device: DeviceArg,
 }

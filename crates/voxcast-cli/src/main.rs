@@ -75,7 +75,7 @@ fn render(a: RenderArgs) -> Result<()> {
             bar.set_draw_target(ProgressDrawTarget::stderr());
         }
     };
-    let device = pick_device(a.device, &scene, quiet)?;
+    let device = pick_device(a.device, &scene, prepared.geometry.as_deref(), quiet)?;
     let (image, stats) = match &device {
         Device::Cpu => scene.render(&prepared, &progress)?,
         Device::Gpu(ctx) => gpu_renderer(ctx, &prepared)?
@@ -140,15 +140,21 @@ impl Device {
 /// Resolves `--device` for `scene`: `gpu` must find an adapter (the error
 /// names the backends and adapters tried); `auto` takes a hardware GPU when
 /// there is one and it renders the scene's method, else the CPU, and says
-/// which.
-fn pick_device(arg: args::DeviceArg, scene: &Scene, quiet: bool) -> Result<Device> {
-    use voxcast_gpu::{DeviceChoice, GpuContext, GpuError};
+/// which. Triangle meshes in `geometry` are CPU-only (boxes and planes are
+/// fine on the GPU).
+fn pick_device(
+    arg: args::DeviceArg,
+    scene: &Scene,
+    geometry: Option<&voxcast::geometry::Geometry>,
+    quiet: bool,
+) -> Result<Device> {
+    use voxcast_gpu::{DeviceChoice, GpuContext, GpuError, GpuRenderer};
     match arg {
         args::DeviceArg::Cpu => Ok(Device::Cpu),
         args::DeviceArg::Gpu => {
             if !voxcast_gpu::supports(scene.render.method) {
                 bail!(
-                    "--device gpu: method `{}` is not implemented on the GPU (it renders uniform, adaptive, adaptive-max, jitter, stratified and mc); use --device cpu or auto",
+                    "--device gpu: method `{}` is not implemented on the GPU (it renders uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter); use --device cpu or auto",
                     scene.render.method.name()
                 );
             }
@@ -164,6 +170,14 @@ fn pick_device(arg: args::DeviceArg, scene: &Scene, quiet: bool) -> Result<Devic
                     eprintln!(
                         "--device auto: method `{}` has no GPU version; rendering on the CPU",
                         scene.render.method.name()
+                    );
+                }
+                return Ok(Device::Cpu);
+            }
+            if !GpuRenderer::supports_geometry(geometry) {
+                if !quiet {
+                    eprintln!(
+                        "--device auto: triangle meshes have no GPU version; rendering on the CPU"
                     );
                 }
                 return Ok(Device::Cpu);
@@ -354,7 +368,7 @@ fn bench(a: BenchArgs) -> Result<()> {
             m.apply(&mut device_scene.render);
         }
     }
-    let device = pick_device(a.device, &device_scene, quiet)?;
+    let device = pick_device(a.device, &device_scene, prepared.geometry.as_deref(), quiet)?;
     let gpu = match &device {
         Device::Cpu => None,
         Device::Gpu(ctx) => Some(GpuMethods {

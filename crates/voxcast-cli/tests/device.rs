@@ -86,7 +86,7 @@ fn gpu_refuses_a_method_it_lacks_by_name() {
             "--device",
             "gpu",
             "--method",
-            "threshold",
+            "importance",
             "--size",
             "32x32",
         ],
@@ -95,7 +95,7 @@ fn gpu_refuses_a_method_it_lacks_by_name() {
     );
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("method `threshold`"), "{err}");
+    assert!(err.contains("method `importance`"), "{err}");
     assert!(!err.contains("panicked"), "{err}");
 }
 
@@ -157,7 +157,7 @@ fn bench_on_the_gpu_reports_the_device_and_unsupported_methods() {
             "--device",
             "gpu",
             "--methods",
-            "uniform,adaptive+grouped,threshold",
+            "uniform,adaptive+grouped,importance",
             "--size",
             "32x32",
             "--repeat",
@@ -178,7 +178,7 @@ fn bench_on_the_gpu_reports_the_device_and_unsupported_methods() {
     }
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(
-        out.contains("threshold") && out.contains("not supported on the GPU back end"),
+        out.contains("importance") && out.contains("not supported on the GPU back end"),
         "{out}\n{err}"
     );
     let j: serde_json::Value =
@@ -192,5 +192,111 @@ fn bench_on_the_gpu_reports_the_device_and_unsupported_methods() {
         let psnr = m["psnr_db"].as_f64().unwrap();
         assert!(psnr > 30.0, "{m}");
     }
-    assert!(methods[2]["error"].as_str().unwrap().contains("threshold"));
+    assert!(methods[2]["error"].as_str().unwrap().contains("importance"));
+}
+
+/// Renders `args` with `--device cpu` and `--device gpu` (plus `env` for
+/// the GPU run) and returns the PSNR of the two EXRs, or `None` when there
+/// is no adapter outside CI.
+fn cpu_vs_gpu(args: &[&str], env: &[(&str, &str)]) -> Option<f64> {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |device: &str, env: &[(&str, &str)]| {
+        let png = format!("{device}.png");
+        let exr = format!("{device}.exr");
+        let json = format!("{device}.json");
+        let mut a = vec![
+            "render",
+            "--device",
+            device,
+            "-o",
+            &png,
+            "--float-out",
+            &exr,
+            "--stats-json",
+            &json,
+        ];
+        a.extend(args);
+        let mut c = Command::new(env!("CARGO_BIN_EXE_voxcast"));
+        c.args(&a).current_dir(dir.path());
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        c.output().expect("run voxcast")
+    };
+    let o = run("cpu", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = run("gpu", env);
+    let err = stderr(&o);
+    if !o.status.success() && err.contains("no GPU adapter") && !in_ci() {
+        eprintln!("skipping: {err}");
+        return None;
+    }
+    assert!(o.status.success(), "{err}");
+    assert!(dir.path().join("gpu.png").exists());
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("gpu.json")).unwrap())
+            .unwrap();
+    assert!(
+        stats["device"].as_str().unwrap().starts_with("gpu: "),
+        "{stats}"
+    );
+    let a = voxcast::Image::read(&dir.path().join("cpu.exr")).unwrap();
+    let b = voxcast::Image::read(&dir.path().join("gpu.exr")).unwrap();
+    Some(voxcast::metrics::psnr(&a, &b).unwrap())
+}
+
+/// The FDS room with its OBST boxes (loaded automatically from the .smv)
+/// renders on the GPU, also split into bricks by a lowered texture limit.
+#[test]
+fn fds_room_with_obstructions_on_the_gpu() {
+    let Some(smv) = voxcast::testdata::data_path("fds_room/room_smoke.smv") else {
+        return;
+    };
+    let smv = smv.to_string_lossy().into_owned();
+    let args = [
+        smv.as_str(),
+        "--time",
+        "30",
+        "--tf",
+        "smoke",
+        "--size",
+        "96x72",
+    ];
+    let Some(psnr) = cpu_vs_gpu(&args, &[]) else {
+        return;
+    };
+    assert!(psnr >= 40.0, "FDS room GPU vs CPU PSNR {psnr:.2} dB");
+    let psnr = cpu_vs_gpu(&args, &[("VOXCAST_GPU_MAX_TEXTURE_3D", "32")]).unwrap();
+    assert!(
+        psnr >= 40.0,
+        "bricked FDS room GPU vs CPU PSNR {psnr:.2} dB"
+    );
+}
+
+/// `--method single-scatter` on the GPU: the same radiance as the CPU.
+#[test]
+fn single_scatter_on_the_gpu() {
+    let Some(vdb) = voxcast::testdata::data_path("cloud_vdb/cloud.vdb") else {
+        return;
+    };
+    let vdb = vdb.to_string_lossy().into_owned();
+    let args = [
+        vdb.as_str(),
+        "--method",
+        "single-scatter",
+        "--window",
+        "0,1",
+        "--extinction",
+        "40",
+        "--phase",
+        "hg:0.8",
+        "--spp",
+        "4",
+        "--size",
+        "64x64",
+    ];
+    let Some(psnr) = cpu_vs_gpu(&args, &[]) else {
+        return;
+    };
+    assert!(psnr >= 40.0, "single-scatter GPU vs CPU PSNR {psnr:.2} dB");
 }

@@ -45,13 +45,23 @@
 //!
 //! # Supported
 //!
-//! Methods `uniform`, `adaptive`, `adaptive-max` (each with `+grouped` and
-//! `+noskip`), `jitter`, `stratified`, `mc` (progressive over `spp`), the
+//! Methods `uniform`, `adaptive`, `adaptive-max`, `threshold` (each with
+//! `+grouped` and `+noskip`), `jitter`, `stratified`, `mc` (progressive over
+//! `spp`, in dispatches of at most eight passes), the
 //! three optical models, shading, both compositing orders (back to front is
 //! computed front to back without early termination, which is the same
-//! sum). Not yet: `threshold`, `importance`, `lod`, `single-scatter`, `path`,
-//! opaque geometry, and volumes larger than the device's 3D texture limit
-//! (no bricking yet); each is refused with an error naming it.
+//! sum); `single-scatter` (optical model 4: delta tracking, ratio-tracked
+//! shadow rays to directional and point lights, one phase-sampled shadow ray
+//! to environment and sky lights; isotropic, HG, Schlick, Rayleigh and Mie
+//! phase functions; grid or global majorant — the CPU's random numbers, so
+//! the same image); opaque axis-aligned boxes and planes (bounded or
+//! infinite) with Blinn–Phong lighting and smoke shadows
+//! ([`GpuRenderer::with_geometry`]); volumes larger than the device's 3D
+//! texture limit, split into up to eight bricks ([`Bricking`]).
+//!
+//! Not yet: `importance`, `lod`, `path`, triangle meshes (OBJ),
+//! volumes that need more than eight bricks; each is refused with an error
+//! naming it.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -310,7 +320,45 @@ struct Params {
     size: [u32; 4],
     seed: [u32; 4],
     levels: [i32; 4],
+    /// Geometry and lights: shape records, shadows, light records, phase kind.
+    geo: [u32; 4],
+    /// Surface key light: direction towards it; w unused.
+    surf_dir: [f32; 4],
+    /// Surface Blinn–Phong: ambient, diffuse, specular, shininess.
+    surf_k: [f32; 4],
+    /// Medium: world → voxel offset, w: σ_t at density 1.
+    med_offset: [f32; 4],
+    /// Medium: world → voxel scale, w: phase parameter (g or k).
+    med_scale: [f32; 4],
+    /// Medium: the box's far corner (voxels), w: global majorant.
+    med_hi: [f32; 4],
+    /// Medium: albedo, w: 1 for the global majorant, 0 for the grid.
+    med_albedo: [f32; 4],
+    /// Medium: has infinite lights, unused ×3.
+    med_flags: [u32; 4],
+    /// Bricks per axis, w: their product.
+    bricks: [u32; 4],
+    /// Cells per brick along each axis.
+    brick_cells: [u32; 4],
+    /// The passes of one dispatch: first, end (exclusive).
+    chunk: [u32; 4],
+    /// Threshold: range bounds, steps of ranges 0 and 1 (voxels).
+    thresh: [f32; 4],
+    /// Threshold: step of range 2 (voxels).
+    thresh2: [f32; 4],
 }
+
+/// Passes per dispatch of the progressive methods: a render of many passes
+/// is split into dispatches of at most this many, each adding to the sums
+/// the one before left, so no single dispatch runs long enough to trip a
+/// GPU watchdog (about 2 s on desktop drivers).
+const PASSES_PER_DISPATCH: u32 = 8;
+
+/// Texture slots for bricks (bindings 1 and 9…15).
+const MAX_BRICKS: usize = 8;
+/// `vec4` records per shape and per light in the scene buffer.
+const SHAPE_WORDS: usize = 6;
+const LIGHT_WORDS: usize = 4;
 
 const F_SHADING: u32 = 1;
 const F_GROUPED: u32 = 2;
@@ -326,9 +374,11 @@ fn method_code(m: Method) -> Result<u32, GpuError> {
         Method::Jitter => 3,
         Method::Mc => 4,
         Method::Stratified => 5,
+        Method::SingleScatter => 6,
+        Method::Threshold => 7,
         other => {
             return Err(GpuError::Unsupported(format!(
-                "method `{}` (the GPU renders uniform, adaptive, adaptive-max, jitter, stratified and mc; use --device cpu for `{}`)",
+                "method `{}` (the GPU renders uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter; use --device cpu for `{}`)",
                 other.name(),
                 other.name()
             )))
@@ -336,7 +386,12 @@ fn method_code(m: Method) -> Result<u32, GpuError> {
     })
 }
 
-/// Whether the GPU back end renders `method`.
+/// Whether the GPU back end renders `method`: `uniform`, `adaptive`,
+/// `adaptive-max`, `threshold`, `jitter`, `stratified`, `mc` and
+/// `single-scatter` (not `importance`, `lod`, `path`). Opaque geometry is a separate
+/// question, [`GpuRenderer::supports_geometry`]: boxes and planes yes,
+/// triangle meshes no (`single-scatter` takes no geometry on either back
+/// end).
 pub fn supports(method: Method) -> bool {
     method_code(method).is_ok()
 }
@@ -366,7 +421,12 @@ pub struct GpuRenderer {
     ctx: Arc<GpuContext>,
     volume: Volume,
     window: [f32; 2],
-    texture_view: wgpu::TextureView,
+    /// One view per texture slot (bricks, then repeats of the first).
+    texture_views: Vec<wgpu::TextureView>,
+    /// Bricks per axis and cells per brick (see [`Bricking`]).
+    bricking: Bricking,
+    /// Opaque boxes and planes (see [`GpuRenderer::with_geometry`]).
+    geometry: Option<voxcast::geometry::Geometry>,
     lut_texture: wgpu::Texture,
     lut_view: wgpu::TextureView,
     pipeline: wgpu::ComputePipeline,
@@ -437,6 +497,98 @@ fn f16_bits(v: f32) -> u16 {
     sign | (((e + 15) as u16) << 10) | m
 }
 
+/// The environment variable that lowers the 3D texture limit (voxels per
+/// side) below the device's, to exercise bricking on volumes that would fit.
+pub const TEXTURE_LIMIT_ENV: &str = "VOXCAST_GPU_MAX_TEXTURE_3D";
+
+fn env_texture_limit() -> Option<u32> {
+    std::env::var(TEXTURE_LIMIT_ENV).ok()?.trim().parse().ok()
+}
+
+/// How a volume larger than the device's 3D texture limit is split.
+///
+/// Design: each axis whose voxel count exceeds the limit `L` is cut into
+/// `n = ⌈(dims − 1)/(L − 1)⌉` equal runs of `C = ⌈(dims − 1)/n⌉` cells; a
+/// brick holds the `C + 1` voxels of its cells (the last one fewer), so
+/// neighbouring bricks share one plane of voxels. Every brick is its own 3D
+/// texture (no side above `L`), bound in one of [`MAX_BRICKS`] fixed texture
+/// slots (bindings 1 and 9…15: no binding-array feature needed). The shader
+/// reconstructs a sample from the eight voxels of its cell, and with the
+/// shared plane all eight lie in the brick that owns the cell's lower corner
+/// (`⌊cell / C⌋` per axis — the page table is this division), so a bricked
+/// render reads exactly the values of an unbricked one: the picture is the
+/// same, seams included. Eight slots cover volumes up to about twice the
+/// limit on every side (8192³ voxels at lavapipe's 4096, 4096³ at the 2048
+/// of many GPUs), or eight times it along one axis; larger volumes are
+/// refused with an error naming the sizes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Bricking {
+    /// Bricks per axis.
+    pub counts: [usize; 3],
+    /// Cells per brick along each axis (the last brick may have fewer).
+    pub cells: [usize; 3],
+}
+
+impl Bricking {
+    /// The split of a volume of `dims` voxels for a limit of `limit` (≥ 2)
+    /// voxels per texture side.
+    pub fn new(dims: [usize; 3], limit: usize) -> Result<Bricking, GpuError> {
+        let mut counts = [1; 3];
+        let mut cells = [1; 3];
+        for a in 0..3 {
+            let n_cells = dims[a].saturating_sub(1).max(1);
+            counts[a] = n_cells.div_ceil(limit - 1);
+            cells[a] = n_cells.div_ceil(counts[a]);
+        }
+        let total: usize = counts.iter().product();
+        if total > MAX_BRICKS {
+            return Err(GpuError::Unsupported(format!(
+                "volume of {}×{}×{} voxels: larger than this device's 3D texture limit of {limit} per side (max_texture_dimension_3d{}) even in {MAX_BRICKS} bricks (it would need {}×{}×{}); use --device cpu or downsample the volume",
+                dims[0],
+                dims[1],
+                dims[2],
+                if env_texture_limit().is_some() {
+                    format!(", or {TEXTURE_LIMIT_ENV}")
+                } else {
+                    String::new()
+                },
+                counts[0],
+                counts[1],
+                counts[2]
+            )));
+        }
+        Ok(Bricking { counts, cells })
+    }
+
+    /// Number of bricks.
+    pub fn len(&self) -> usize {
+        self.counts.iter().product()
+    }
+
+    /// Always false: a volume is at least one brick.
+    pub fn is_empty(&self) -> bool {
+        false
+    }
+
+    /// Brick coordinates in slot order (x fastest).
+    fn all(&self) -> impl Iterator<Item = [usize; 3]> + '_ {
+        let [nx, ny, nz] = self.counts;
+        (0..nz).flat_map(move |k| (0..ny).flat_map(move |j| (0..nx).map(move |i| [i, j, k])))
+    }
+
+    /// First voxel and voxel counts of brick `b` of a volume of `dims`.
+    fn extent(&self, b: [usize; 3], dims: [usize; 3]) -> ([usize; 3], [usize; 3]) {
+        let mut lo = [0; 3];
+        let mut size = [0; 3];
+        for a in 0..3 {
+            lo[a] = b[a] * self.cells[a];
+            let hi = (lo[a] + self.cells[a]).min(dims[a] - 1);
+            size[a] = hi - lo[a] + 1;
+        }
+        (lo, size)
+    }
+}
+
 impl GpuRenderer {
     /// Uploads `volume` (values `window[0]…window[1]` map to 0…1, as on the
     /// CPU) and builds the default block grid.
@@ -444,6 +596,19 @@ impl GpuRenderer {
         ctx: Arc<GpuContext>,
         volume: &Volume,
         window: [f32; 2],
+    ) -> Result<GpuRenderer, GpuError> {
+        Self::with_texture_limit(ctx, volume, window, None)
+    }
+
+    /// [`GpuRenderer::new`] with the 3D texture limit lowered to `max_side`
+    /// voxels per side (`None`: the device's `max_texture_dimension_3d`, or
+    /// `VOXCAST_GPU_MAX_TEXTURE_3D` when set and smaller), so bricking can
+    /// be tried on volumes that would fit whole.
+    pub fn with_texture_limit(
+        ctx: Arc<GpuContext>,
+        volume: &Volume,
+        window: [f32; 2],
+        max_side: Option<u32>,
     ) -> Result<GpuRenderer, GpuError> {
         // The CPU renderer's window checks and widening.
         let mut window = window;
@@ -457,26 +622,38 @@ impl GpuRenderer {
             ))
             .into());
         }
-        let dims = volume.dims();
-        let limit = ctx.limits().max_texture_dimension_3d as usize;
-        if dims.iter().any(|&d| d > limit) {
-            return Err(GpuError::Unsupported(format!(
-                "volume of {}×{}×{} voxels: larger than this device's 3D texture limit of {limit} per side (max_texture_dimension_3d), and bricking is not implemented yet; use --device cpu or downsample the volume",
-                dims[0], dims[1], dims[2]
-            )));
-        }
+        let device_limit = ctx.limits().max_texture_dimension_3d;
+        let limit = max_side
+            .into_iter()
+            .chain(env_texture_limit())
+            .fold(device_limit, u32::min)
+            .max(2) as usize;
+        let bricking = Bricking::new(volume.dims(), limit)?;
         let (bytes, format, scale, offset) = texels(volume, window);
         scoped(
             &ctx.device,
             "uploading the volume and building the shader",
-            || Self::build(ctx.clone(), volume, window, bytes, format, scale, offset),
+            || {
+                Self::build(
+                    ctx.clone(),
+                    volume,
+                    window,
+                    bricking,
+                    bytes,
+                    format,
+                    scale,
+                    offset,
+                )
+            },
         )
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn build(
         ctx: Arc<GpuContext>,
         volume: &Volume,
         window: [f32; 2],
+        bricking: Bricking,
         bytes: Vec<u8>,
         format: wgpu::TextureFormat,
         scale: f32,
@@ -484,38 +661,55 @@ impl GpuRenderer {
     ) -> GpuRenderer {
         let dims = volume.dims();
         let device = &ctx.device;
-        let size = wgpu::Extent3d {
-            width: dims[0] as u32,
-            height: dims[1] as u32,
-            depth_or_array_layers: dims[2] as u32,
-        };
-        let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("volume"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let bpp = format.block_copy_size(None).unwrap_or(4);
-        ctx.queue.write_texture(
-            wgpu::TexelCopyTextureInfo {
-                texture: &texture,
-                mip_level: 0,
-                origin: wgpu::Origin3d::ZERO,
-                aspect: wgpu::TextureAspect::All,
-            },
-            &bytes,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(dims[0] as u32 * bpp),
-                rows_per_image: Some(dims[1] as u32),
-            },
-            size,
-        );
-        let texture_view = texture.create_view(&Default::default());
+        let bpp = format.block_copy_size(None).unwrap_or(4) as usize;
+        let mut texture_views = Vec::with_capacity(MAX_BRICKS);
+        for b in bricking.all() {
+            let (lo, size) = bricking.extent(b, dims);
+            // The brick's voxels, row by row.
+            let mut data = Vec::with_capacity(size[0] * size[1] * size[2] * bpp);
+            for k in lo[2]..lo[2] + size[2] {
+                for j in lo[1]..lo[1] + size[1] {
+                    let row = (lo[0] + dims[0] * (j + dims[1] * k)) * bpp;
+                    data.extend_from_slice(&bytes[row..row + size[0] * bpp]);
+                }
+            }
+            let extent = wgpu::Extent3d {
+                width: size[0] as u32,
+                height: size[1] as u32,
+                depth_or_array_layers: size[2] as u32,
+            };
+            let texture = device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("volume brick"),
+                size: extent,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D3,
+                format,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            });
+            ctx.queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                &data,
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some((size[0] * bpp) as u32),
+                    rows_per_image: Some(size[1] as u32),
+                },
+                extent,
+            );
+            texture_views.push(texture.create_view(&Default::default()));
+        }
+        drop(bytes);
+        // Unused slots repeat the first brick (never read).
+        while texture_views.len() < MAX_BRICKS {
+            texture_views.push(texture_views[0].clone());
+        }
         let lut_texture = device.create_texture(&wgpu::TextureDescriptor {
             label: Some("transfer function"),
             size: wgpu::Extent3d {
@@ -575,6 +769,15 @@ impl GpuRenderer {
                 storage(4, true),
                 storage(5, false),
                 storage(6, false),
+                storage(7, true),
+                storage(8, true),
+                texture_entry(9, wgpu::TextureViewDimension::D3),
+                texture_entry(10, wgpu::TextureViewDimension::D3),
+                texture_entry(11, wgpu::TextureViewDimension::D3),
+                texture_entry(12, wgpu::TextureViewDimension::D3),
+                texture_entry(13, wgpu::TextureViewDimension::D3),
+                texture_entry(14, wgpu::TextureViewDimension::D3),
+                texture_entry(15, wgpu::TextureViewDimension::D3),
             ],
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -600,7 +803,9 @@ impl GpuRenderer {
             ctx,
             volume: volume.clone(),
             window,
-            texture_view,
+            texture_views,
+            bricking,
+            geometry: None,
             lut_texture,
             lut_view,
             pipeline,
@@ -622,18 +827,38 @@ impl GpuRenderer {
         r
     }
 
-    /// Refuses opaque geometry, which the GPU does not render yet (an empty
-    /// or absent geometry is fine).
+    /// Adds opaque geometry: axis-aligned boxes and planes (bounded or
+    /// infinite) are rendered on the GPU as on the CPU — the first hit ends
+    /// the ray, the smoke in front is composited over the Blinn–Phong lit
+    /// surface, with the optional smoke shadows. Triangle meshes (OBJ) are
+    /// CPU-only and refused by name. `None` or an empty geometry: none.
     pub fn with_geometry(
-        self,
+        mut self,
         geometry: Option<&voxcast::geometry::Geometry>,
     ) -> Result<GpuRenderer, GpuError> {
-        if geometry.is_some_and(|g| !g.is_empty()) {
-            return Err(GpuError::Unsupported(
-                "opaque geometry (boxes, planes, meshes) is not rendered on the GPU yet; use --device cpu, or --geometry none to leave it out".into(),
-            ));
+        self.geometry = None;
+        let Some(g) = geometry.filter(|g| !g.is_empty()) else {
+            return Ok(self);
+        };
+        if g.counts()[2] > 0 {
+            return Err(GpuError::Unsupported(format!(
+                "triangle meshes (OBJ: {} meshes, {} triangles) are rendered on the CPU only; use --device cpu (boxes and planes are fine on the GPU)",
+                g.counts()[2],
+                g.counts()[3]
+            )));
         }
+        self.geometry = Some(g.clone());
         Ok(self)
+    }
+
+    /// Whether the GPU renders `geometry` (boxes and planes; not meshes).
+    pub fn supports_geometry(geometry: Option<&voxcast::geometry::Geometry>) -> bool {
+        geometry.is_none_or(|g| g.counts()[2] == 0)
+    }
+
+    /// How the volume was split into bricks (one brick when it fits).
+    pub fn bricking(&self) -> Bricking {
+        self.bricking
     }
 
     /// The data window in use.
@@ -706,6 +931,16 @@ impl GpuRenderer {
             l.validate().map_err(voxcast::Error::invalid)?;
         }
         let method = method_code(params.method)?;
+        let physical = params.method.is_physical();
+        let geometry = self.geometry.as_ref().filter(|g| !g.is_empty());
+        if physical && geometry.is_some() {
+            // As the CPU renderer refuses it.
+            return Err(voxcast::Error::invalid(format!(
+                "method {}: opaque geometry is not supported by the physically based integrators yet; render without it (--geometry none) or use a ray-casting method",
+                params.method.name()
+            ))
+            .into());
+        }
         let start = Instant::now();
         let (w, h) = (params.width, params.height);
         let pixels = w as u64 * h as u64;
@@ -763,8 +998,11 @@ impl GpuRenderer {
         let counts = blocks.grid.counts;
         let block_size = blocks.grid.size;
 
-        // The camera, as the CPU frames it.
-        let (lo, hi) = self.volume.world_bounds();
+        // The camera, as the CPU frames it (the volume and the shapes).
+        let (mut lo, mut hi) = self.volume.world_bounds();
+        if let Some((glo, ghi)) = geometry.and_then(|g| g.bounds()) {
+            (lo, hi) = (lo.min(glo), hi.max(ghi));
+        }
         let cam = Camera::fit(camera, lo, hi, w, h);
         let projection = camera.projection;
         // Half extents of the image plane, recovered from the corner ray.
@@ -813,8 +1051,9 @@ impl GpuRenderer {
         }
         let seed = params.seed;
         let sm = voxcast::render::rng::splitmix(seed);
+        let scene = SceneData::new(geometry, &cam, params, &self.volume, &blocks.grid);
         let bg = params.background.map(srgb_to_linear);
-        let p = Params {
+        let mut p = Params {
             eye: [
                 cam.eye.x,
                 cam.eye.y,
@@ -859,8 +1098,45 @@ impl GpuRenderer {
                 },
                 0,
             ],
+            geo: scene.geo,
+            surf_dir: scene.surf_dir,
+            surf_k: scene.surf_k,
+            med_offset: scene.med_offset,
+            med_scale: scene.med_scale,
+            med_hi: scene.med_hi,
+            med_albedo: scene.med_albedo,
+            med_flags: scene.med_flags,
+            bricks: [
+                self.bricking.counts[0] as u32,
+                self.bricking.counts[1] as u32,
+                self.bricking.counts[2] as u32,
+                self.bricking.len() as u32,
+            ],
+            brick_cells: [
+                self.bricking.cells[0] as u32,
+                self.bricking.cells[1] as u32,
+                self.bricking.cells[2] as u32,
+                0,
+            ],
+            chunk: [0, passes, 0, 0],
+            thresh: [
+                params.threshold.bounds[0],
+                params.threshold.bounds[1],
+                params.threshold.steps[0],
+                params.threshold.steps[1],
+            ],
+            thresh2: [params.threshold.steps[2], 0.0, 0.0, 0.0],
         };
-        queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
+        let records = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("shapes and lights"),
+            contents: bytemuck::cast_slice(&scene.records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let majorant = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("majorant"),
+            contents: bytemuck::cast_slice(&scene.majorant),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
 
         let (gx, gy) = (w.div_ceil(8), h.div_ceil(8));
         let stats_bytes = gx as u64 * gy as u64 * 6 * 4;
@@ -885,6 +1161,10 @@ impl GpuRenderer {
         }
         let blocks = &st.blocks[&(params.block_size as usize)];
         let (_, out_px, out_stats, read_px, read_stats) = st.out.as_ref().expect("made above");
+        let tex = |binding: u32, slot: usize| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(&self.texture_views[slot]),
+        };
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("raycast"),
             layout: &self.layout,
@@ -895,7 +1175,7 @@ impl GpuRenderer {
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&self.texture_view),
+                    resource: wgpu::BindingResource::TextureView(&self.texture_views[0]),
                 },
                 wgpu::BindGroupEntry {
                     binding: 2,
@@ -917,25 +1197,69 @@ impl GpuRenderer {
                     binding: 6,
                     resource: out_stats.as_entire_binding(),
                 },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: records.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: majorant.as_entire_binding(),
+                },
+                tex(9, 1),
+                tex(10, 2),
+                tex(11, 3),
+                tex(12, 4),
+                tex(13, 5),
+                tex(14, 6),
+                tex(15, 7),
             ],
         });
-        let mut enc = device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
+        // One submit per chunk of passes (queue order keeps each chunk's
+        // parameters with its dispatch); the last one copies the sums out.
+        let mut first = 0;
+        while first < passes {
+            let end = (first + PASSES_PER_DISPATCH).min(passes);
+            p.chunk = [first, end, 0, 0];
+            queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
+            let mut enc = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            if end == passes {
+                enc.copy_buffer_to_buffer(out_px, 0, read_px, 0, out_bytes);
+                enc.copy_buffer_to_buffer(out_stats, 0, read_stats, 0, stats_bytes);
+            }
+            queue.submit([enc.finish()]);
+            first = end;
         }
-        enc.copy_buffer_to_buffer(out_px, 0, read_px, 0, out_bytes);
-        enc.copy_buffer_to_buffer(out_stats, 0, read_stats, 0, stats_bytes);
-        queue.submit([enc.finish()]);
         let px = read_back(device, read_px)?;
         let sv = read_back(device, read_stats)?;
-        let pixels_f: &[[f32; 4]] = bytemuck::cast_slice(&px);
+        // The sums over the passes → the average, over the background (the
+        // CPU's arithmetic: linear radiance, opaque, for single-scatter).
+        let sums: &[[f32; 4]] = bytemuck::cast_slice(&px);
+        let n = passes as f32;
+        let bg_v = glam::Vec3::from(bg);
+        let pixels_f = sums
+            .iter()
+            .map(|&s| {
+                let s = glam::Vec4::from(s);
+                if physical {
+                    let c = s.truncate() / n;
+                    [c.x, c.y, c.z, 1.0]
+                } else {
+                    let c = s / n;
+                    let rgb = c.truncate() + bg_v * (1.0 - c.w);
+                    [rgb.x, rgb.y, rgb.z, c.w]
+                }
+            })
+            .collect();
         let image = Image {
             width: w,
             height: h,
-            pixels: pixels_f.to_vec(),
+            pixels: pixels_f,
         };
         let words: &[u32] = bytemuck::cast_slice(&sv);
         let mut sum = [0u64; 6];
@@ -954,6 +1278,170 @@ impl GpuRenderer {
             seconds: start.elapsed().as_secs_f64(),
         };
         Ok((image, stats))
+    }
+}
+
+/// What a render needs besides the volume: the shapes and lights in one
+/// buffer of `vec4` records, the medium and the majorant.
+struct SceneData {
+    geo: [u32; 4],
+    surf_dir: [f32; 4],
+    surf_k: [f32; 4],
+    med_offset: [f32; 4],
+    med_scale: [f32; 4],
+    med_hi: [f32; 4],
+    med_albedo: [f32; 4],
+    med_flags: [u32; 4],
+    records: Vec<[f32; 4]>,
+    majorant: Vec<f32>,
+}
+
+impl SceneData {
+    fn new(
+        geometry: Option<&voxcast::geometry::Geometry>,
+        cam: &Camera,
+        params: &RenderParams,
+        volume: &Volume,
+        blocks: &BlockGrid,
+    ) -> SceneData {
+        use voxcast::geometry::Primitive;
+        use voxcast::render::light::Light;
+        use voxcast::render::phase::PhaseFunction;
+        let v4 = |v: glam::Vec3, w: f32| [v.x, v.y, v.z, w];
+        let mut records = Vec::new();
+        let mut shapes = 0;
+        let mut surf_dir = [0.0; 4];
+        let mut surf_k = [0.0; 4];
+        let mut shadows = 0;
+        if let Some(g) = geometry {
+            // Per shape: kind (0 box, 1 rectangle, 2 infinite plane) and
+            // half extents; min | point; max | normal; u; v; albedo.
+            for (p, albedo) in g.primitives() {
+                let rec = match p {
+                    Primitive::Box(b) => {
+                        [[0.0; 4], v4(b.min, 0.0), v4(b.max, 0.0), [0.0; 4], [0.0; 4]]
+                    }
+                    Primitive::Rect(p) | Primitive::InfinitePlane(p) => {
+                        let [a, b] = p.half_extent.unwrap_or([0.0; 2]);
+                        let kind = if p.half_extent.is_some() { 1.0 } else { 2.0 };
+                        [
+                            [kind, a, b, 0.0],
+                            v4(p.point, 0.0),
+                            v4(p.normal, 0.0),
+                            v4(p.u, 0.0),
+                            v4(p.v, 0.0),
+                        ]
+                    }
+                    // Refused by `with_geometry`.
+                    Primitive::Triangle(_) => continue,
+                };
+                records.extend_from_slice(&rec);
+                records.push(v4(albedo, 0.0));
+                shapes += 1;
+            }
+            let light = voxcast::geometry::SurfaceLight::new(g.light, cam);
+            surf_dir = v4(light.to_light, 0.0);
+            surf_k = [
+                light.ambient,
+                light.diffuse,
+                light.specular,
+                light.shininess,
+            ];
+            shadows = g.shadows as u32;
+        }
+        debug_assert_eq!(records.len(), shapes * SHAPE_WORDS);
+        // Lights (single-scatter): kind (0 directional, 1 point,
+        // 2 environment, 3 sky); then its vectors.
+        let default_lights;
+        let lights: &[Light] = if params.lights.is_empty() {
+            default_lights = Light::default_sun_and_sky();
+            &default_lights
+        } else {
+            &params.lights
+        };
+        let v = |a: [f32; 3]| [a[0], a[1], a[2], 0.0];
+        for l in lights {
+            let rec = match *l {
+                Light::Directional {
+                    direction,
+                    irradiance,
+                } => [
+                    [0.0; 4],
+                    v4(glam::Vec3::from(direction).normalize(), 0.0),
+                    v(irradiance),
+                    [0.0; 4],
+                ],
+                Light::Point {
+                    position,
+                    intensity,
+                } => [[1.0, 0.0, 0.0, 0.0], v(position), v(intensity), [0.0; 4]],
+                Light::Environment { radiance } => {
+                    [[2.0, 0.0, 0.0, 0.0], v(radiance), [0.0; 4], [0.0; 4]]
+                }
+                Light::Sky {
+                    zenith,
+                    horizon,
+                    ground,
+                } => [[3.0, 0.0, 0.0, 0.0], v(zenith), v(horizon), v(ground)],
+            };
+            records.extend_from_slice(&rec);
+        }
+        debug_assert_eq!(
+            records.len(),
+            shapes * SHAPE_WORDS + lights.len() * LIGHT_WORDS
+        );
+        if records.is_empty() {
+            records.push([0.0; 4]);
+        }
+        let medium = &params.medium;
+        let (phase_kind, phase_arg) = match medium.phase {
+            PhaseFunction::Isotropic => (0, 0.0),
+            PhaseFunction::Hg { g } => (1, g),
+            PhaseFunction::Schlick { k } => (2, k),
+            PhaseFunction::Rayleigh => (3, 0.0),
+            PhaseFunction::Mie { g } => (4, g),
+        };
+        // path.rs: the medium box in voxel coordinates.
+        let dims = volume.dims();
+        let hi = glam::Vec3::new(
+            dims[0].saturating_sub(1).max(1) as f32,
+            dims[1].saturating_sub(1).max(1) as f32,
+            dims[2].saturating_sub(1).max(1) as f32,
+        );
+        let (offset, scale_v) = match medium.r#box {
+            Some([lo, bhi]) => (
+                glam::Vec3::from(lo),
+                hi / (glam::Vec3::from(bhi) - glam::Vec3::from(lo)),
+            ),
+            None => (volume.origin(), glam::Vec3::ONE / volume.spacing()),
+        };
+        let (majorant, global) = if params.method.is_physical() {
+            let m = voxcast::render::majorant::Majorant::new(blocks, medium.scale, medium.majorant);
+            (m.sigma, m.global)
+        } else {
+            (vec![0.0], 0.0)
+        };
+        SceneData {
+            geo: [shapes as u32, shadows, lights.len() as u32, phase_kind],
+            surf_dir,
+            surf_k,
+            med_offset: v4(offset, medium.scale),
+            med_scale: v4(scale_v, phase_arg),
+            med_hi: v4(hi, global),
+            med_albedo: [
+                medium.albedo[0],
+                medium.albedo[1],
+                medium.albedo[2],
+                (medium.majorant == voxcast::render::medium::MajorantKind::Global) as u32 as f32,
+            ],
+            med_flags: [lights.iter().any(|l| !l.is_delta()) as u32, 0, 0, 0],
+            records,
+            majorant: if majorant.is_empty() {
+                vec![0.0]
+            } else {
+                majorant
+            },
+        }
     }
 }
 

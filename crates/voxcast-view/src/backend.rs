@@ -5,7 +5,7 @@
 //! Two back ends: the CPU ray caster, and the wgpu compute ray caster of
 //! `voxcast-gpu` (the volume uploaded once per volume and window; each frame
 //! only rewrites the transfer-function table and the camera). Methods the GPU
-//! does not have (and scenes with opaque geometry) are drawn by the CPU
+//! does not have (and scenes with triangle meshes) are drawn by the CPU
 //! renderer inside the GPU back end, frame by frame, so every control keeps
 //! working; the stats bar says which device drew the frame.
 
@@ -77,10 +77,17 @@ pub fn create<'v>(
         Backend::Gpu(ctx) => {
             let gpu = GpuRenderer::new(ctx, volume, window)
                 .map_err(|e| voxcast::Error::invalid(e.to_string()))?;
-            let has_geometry = geometry.as_ref().is_some_and(|g| !g.is_empty());
+            // Boxes and planes are drawn on the GPU; meshes only on the CPU.
+            let cpu_geometry = !GpuRenderer::supports_geometry(geometry.as_deref());
+            let gpu = if cpu_geometry {
+                gpu
+            } else {
+                gpu.with_geometry(geometry.as_deref())
+                    .map_err(|e| voxcast::Error::invalid(e.to_string()))?
+            };
             Ok(Box::new(GpuFrames {
                 gpu,
-                has_geometry,
+                cpu_geometry,
                 volume,
                 window,
                 geometry,
@@ -94,7 +101,8 @@ pub fn create<'v>(
 /// needed) for the methods and scenes the GPU does not draw.
 struct GpuFrames<'v> {
     gpu: GpuRenderer,
-    has_geometry: bool,
+    /// Geometry the GPU does not draw (triangle meshes).
+    cpu_geometry: bool,
     volume: &'v Volume,
     window: [f32; 2],
     geometry: Option<Arc<Geometry>>,
@@ -109,7 +117,7 @@ impl FrameRenderer for GpuFrames<'_> {
         params: &RenderParams,
         cancel: &AtomicBool,
     ) -> voxcast::Result<(Image, RenderStats)> {
-        if voxcast_gpu::supports(params.method) && !self.has_geometry {
+        if voxcast_gpu::supports(params.method) && !self.cpu_geometry {
             return self
                 .gpu
                 .render(tf, camera, params)

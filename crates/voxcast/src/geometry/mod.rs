@@ -60,6 +60,17 @@ impl Shape {
     }
 }
 
+/// One shape of a [`Geometry`], as [`Geometry::primitives`] lists them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Primitive {
+    Box(Aabb),
+    /// A bounded plane (a rectangle).
+    Rect(Plane),
+    Triangle(Triangle),
+    /// A plane without bounds.
+    InfinitePlane(Plane),
+}
+
 /// The first opaque surface on a ray.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
@@ -341,6 +352,25 @@ impl Geometry {
             self.sources.join(", "),
             if self.shadows { "; shadows on" } else { "" }
         )
+    }
+
+    /// Every shape with its linear albedo, for other back ends (the GPU
+    /// ray caster): the bounded shapes in the order [`Geometry::hit`]'s BVH
+    /// holds them, then the infinite planes in the order they are tested.
+    pub fn primitives(&self) -> Vec<(Primitive, Vec3)> {
+        let bounded = self.shapes.iter().zip(&self.albedo).map(|(s, &c)| {
+            let p = match *s {
+                Shape::Box(b) => Primitive::Box(b),
+                Shape::Rect(p) => Primitive::Rect(p),
+                Shape::Tri(t) => Primitive::Triangle(t),
+            };
+            (p, c)
+        });
+        let infinite = self
+            .infinite
+            .iter()
+            .map(|&(p, c)| (Primitive::InfinitePlane(p), c));
+        bounded.chain(infinite).collect()
     }
 
     /// Bounds of the bounded shapes (infinite planes have none).
