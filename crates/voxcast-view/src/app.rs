@@ -605,9 +605,7 @@ impl ViewerApp {
             Some(s) => {
                 match &s.pixels {
                     Pixels::Paint(img) => {
-                        if std::env::var("VOXCAST_VIEW_EXPERIMENT").as_deref() != Ok("noimage") {
-                            painter.add(image_paint::shape(rect, img.clone()));
-                        }
+                        painter.add(image_paint::shape(rect, img.clone()));
                     }
                     Pixels::Texture(t) => {
                         painter.image(
@@ -735,15 +733,13 @@ impl ViewerApp {
             ui.label("preset");
         });
         let width = ui.available_width().min(PANEL_WIDTH - 20.0);
-        if !std::env::var("VOXCAST_VIEW_EXPERIMENT").is_ok_and(|v| v.contains("notf"))
-            && tf_widget::show(
-                ui,
-                &mut self.tf,
-                self.histogram.as_ref(),
-                &mut self.tf_state,
-                width,
-            )
-        {
+        if tf_widget::show(
+            ui,
+            &mut self.tf,
+            self.histogram.as_ref(),
+            &mut self.tf_state,
+            width,
+        ) {
             changed = true;
         }
         ui.horizontal(|ui| {
@@ -1042,9 +1038,6 @@ impl eframe::App for ViewerApp {
 
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
-        if std::env::var("VOXCAST_VIEW_EXPERIMENT").is_ok_and(|v| v.contains("nofeather")) {
-            ctx.tessellation_options_mut(|o| o.feathering = false);
-        }
         self.ui_frame += 1;
         self.poll_replies(&ctx);
         self.take_screenshot(&ctx);
@@ -1059,9 +1052,7 @@ impl eframe::App for ViewerApp {
             .resizable(false)
             .frame(panel_frame)
             .show(ui, |ui| {
-                if std::env::var("VOXCAST_VIEW_EXPERIMENT").as_deref() != Ok("nopanel") {
-                    egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
-                }
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
         egui::Panel::bottom("stats")
             .exact_size(BAR_HEIGHT)

@@ -423,7 +423,7 @@ impl Smoke {
                 .par_chunks_mut(ny)
                 .enumerate()
                 .for_each(|(k, t)| {
-                    for j in 0..ny {
+                    for (j, tj) in t.iter_mut().enumerate() {
                         let r = j + ny * k;
                         let mut m = lv[r];
                         if j > 0 {
@@ -438,7 +438,7 @@ impl Smoke {
                         if k + 1 < nz {
                             m = m.max(lv[r + ny]);
                         }
-                        t[j] = m;
+                        *tj = m;
                     }
                 });
         }
@@ -960,7 +960,7 @@ impl Ladder {
         let mut count = [0u32; 8];
         count[0] = 1;
         let mut levels = 1;
-        let mut c = if top % 3 == 0 { 3 } else { 2 };
+        let mut c = if top.is_multiple_of(3) { 3 } else { 2 };
         while c <= top {
             count[levels] = c as u32;
             levels += 1;
@@ -990,7 +990,7 @@ impl Ladder {
     fn first_active(&self, s: usize) -> usize {
         let fine = self.fine();
         (0..self.levels)
-            .find(|&l| s % (fine / self.count[l] as usize) == 0)
+            .find(|&l| s.is_multiple_of(fine / self.count[l] as usize))
             .unwrap_or(self.top_level())
     }
 }
