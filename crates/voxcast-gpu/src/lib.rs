@@ -790,7 +790,10 @@ impl GpuRenderer {
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some("main"),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &[("BRICKED", if bricking.len() > 1 { 1.0 } else { 0.0 })],
+                ..Default::default()
+            },
             cache: None,
         });
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {

@@ -201,6 +201,11 @@ fn texel(slot: u32, i: vec3<i32>) -> f32 {
     }
 }
 
+// Whether the volume is split into bricks: a pipeline constant, so an
+// unbricked volume's shader has no slot switch in its texel loads (on a SIMD
+// software rasteriser such as lavapipe the switch costs ~8× per sample).
+override BRICKED: bool = true;
+
 // Grid::sample: trilinear, coordinates clamped to the grid.
 fn sample(p0: vec3<f32>) -> f32 {
     let p = min(max(p0, vec3<f32>(0.0)), P.grid_max.xyz);
@@ -212,13 +217,30 @@ fn sample(p0: vec3<f32>) -> f32 {
     // The brick owning the cell holds all eight voxels (bricks share a plane).
     var slot = 0u;
     var org = vec3<i32>(0);
-    if P.bricks.w > 1u {
+    if BRICKED && P.bricks.w > 1u {
         let b = min(vec3<u32>(i) / P.brick_cells.xyz, P.bricks.xyz - vec3<u32>(1u));
         slot = b.x + P.bricks.x * (b.y + P.bricks.y * b.z);
         org = vec3<i32>(b * P.brick_cells.xyz);
     }
     let a = i - org;
     let j = j0 - org;
+    if !BRICKED {
+        let d000 = textureLoad(vol, vec3<i32>(a.x, a.y, a.z), 0).x;
+        let d100 = textureLoad(vol, vec3<i32>(j.x, a.y, a.z), 0).x;
+        let d010 = textureLoad(vol, vec3<i32>(a.x, j.y, a.z), 0).x;
+        let d110 = textureLoad(vol, vec3<i32>(j.x, j.y, a.z), 0).x;
+        let d001 = textureLoad(vol, vec3<i32>(a.x, a.y, j.z), 0).x;
+        let d101 = textureLoad(vol, vec3<i32>(j.x, a.y, j.z), 0).x;
+        let d011 = textureLoad(vol, vec3<i32>(a.x, j.y, j.z), 0).x;
+        let d111 = textureLoad(vol, vec3<i32>(j.x, j.y, j.z), 0).x;
+        let e00 = d000 + (d100 - d000) * f.x;
+        let e10 = d010 + (d110 - d010) * f.x;
+        let e01 = d001 + (d101 - d001) * f.x;
+        let e11 = d011 + (d111 - d011) * f.x;
+        let e0 = e00 + (e10 - e00) * f.y;
+        let e1 = e01 + (e11 - e01) * f.y;
+        return (e0 + (e1 - e0) * f.z) * P.grid_max.w + P.background.w;
+    }
     let c000 = texel(slot, vec3<i32>(a.x, a.y, a.z));
     let c100 = texel(slot, vec3<i32>(j.x, a.y, a.z));
     let c010 = texel(slot, vec3<i32>(a.x, j.y, a.z));
