@@ -1355,15 +1355,9 @@ impl SceneData {
         debug_assert_eq!(records.len(), shapes * SHAPE_WORDS);
         // Lights (single-scatter): kind (0 directional, 1 point,
         // 2 environment, 3 sky); then its vectors.
-        let default_lights;
-        let lights: &[Light] = if params.lights.is_empty() {
-            default_lights = Light::default_sun_and_sky();
-            &default_lights
-        } else {
-            &params.lights
-        };
+        let lights = params.lights_or_default();
         let v = |a: [f32; 3]| [a[0], a[1], a[2], 0.0];
-        for l in lights {
+        for l in lights.iter() {
             let rec = match *l {
                 Light::Directional {
                     direction,

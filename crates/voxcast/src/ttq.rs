@@ -221,31 +221,8 @@ pub fn run(
         let best = reached
             .into_iter()
             .min_by(|a, b| a.seconds.total_cmp(&b.seconds));
-        let best = match best {
-            Some(b) => {
-                let mut p = base.clone();
-                spec.apply(&mut p);
-                p.step = b.step;
-                p.spp = b.spp;
-                progress(&format!("{spec} timing step {} spp {}", b.step, b.spp));
-                let mut times = Vec::new();
-                for _ in 0..config.repeat.max(1) {
-                    times.push(render(&p)?.1.seconds);
-                }
-                Some(TtqPoint {
-                    seconds: median(&times),
-                    ..b
-                })
-            }
-            None => None,
-        };
-        let timed = |pt: &TtqPoint| -> Result<TtqPoint> {
-            if let Some(b) = best
-                .as_ref()
-                .filter(|b| b.step == pt.step && b.spp == pt.spp)
-            {
-                return Ok(b.clone());
-            }
+        // A setting timed: the median of `--repeat` renders.
+        let time_point = |pt: &TtqPoint| -> Result<TtqPoint> {
             let mut p = base.clone();
             spec.apply(&mut p);
             p.step = pt.step;
@@ -259,6 +236,17 @@ pub fn run(
                 seconds: median(&times),
                 ..pt.clone()
             })
+        };
+        let best = best.as_ref().map(time_point).transpose()?;
+        // The bracketing settings, reusing the best one's timing.
+        let timed = |pt: &TtqPoint| -> Result<TtqPoint> {
+            match best
+                .as_ref()
+                .filter(|b| b.step == pt.step && b.spp == pt.spp)
+            {
+                Some(b) => Ok(b.clone()),
+                None => time_point(pt),
+            }
         };
         let at_target = match bracket(&points, config.target_psnr) {
             Some((lo, hi)) => {

@@ -303,6 +303,16 @@ impl Default for RenderParams {
 }
 
 impl RenderParams {
+    /// The lights of `single-scatter` and `path`: the scene's, or the
+    /// default sun and sky when it has none.
+    pub fn lights_or_default(&self) -> std::borrow::Cow<'_, [light::Light]> {
+        if self.lights.is_empty() {
+            std::borrow::Cow::Owned(light::Light::default_sun_and_sky())
+        } else {
+            std::borrow::Cow::Borrowed(&self.lights)
+        }
+    }
+
     /// Checks the numbers a user may get wrong.
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {

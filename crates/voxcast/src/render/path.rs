@@ -218,13 +218,8 @@ pub(super) fn render(
 ) -> Option<(Image, RenderStats)> {
     let medium = &params.medium;
     let majorant = Majorant::new(blocks, medium.scale, medium.majorant);
-    let default_lights;
-    let lights: &[Light] = if params.lights.is_empty() {
-        default_lights = Light::default_sun_and_sky();
-        &default_lights
-    } else {
-        &params.lights
-    };
+    let lights = params.lights_or_default();
+    let lights: &[Light] = &lights;
     let job = Job {
         volume,
         majorant: &majorant,
