@@ -8,7 +8,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use voxcast::render::MethodSpec;
 use voxcast::scene::Scene;
 use voxcast::volume::Series;
@@ -150,15 +150,6 @@ enum Sink {
     },
 }
 
-/// A temporary name beside `path` (renamed over it when all is written).
-fn temp_beside(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
-}
-
 /// `ffmpeg` when it is on PATH.
 fn find_ffmpeg() -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
@@ -180,17 +171,19 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         .unwrap_or_default();
     let as_dir = ext.is_empty() || out.to_string_lossy().ends_with('/') || out.is_dir();
     let input = &scene.input.path;
-    if crate::writes_into_input(out, Path::new(input)) || Path::new(input) == out {
-        bail!(
-            "{}: refusing to write over or into the input {input}",
-            out.display()
-        );
-    }
-    if !as_dir && ext != "gif" && ext != "mp4" {
+    let mut outputs = voxcast::files::Outputs::new([input]);
+    if as_dir {
+        voxcast::files::check_folder("-o", out, &[input])?;
+    } else if ext != "gif" && ext != "mp4" {
         bail!(
             "{}: output must end in .gif or .mp4, or be a folder (DIR/) for PNGs",
             out.display()
         );
+    } else {
+        outputs.plan("-o", out, &["gif", "mp4"])?;
+    }
+    if let Some(f) = &a.stats_json {
+        outputs.plan("--stats-json", f, &[])?;
     }
     let ffmpeg = if ext == "mp4" && !as_dir {
         Some(find_ffmpeg().context(
@@ -199,15 +192,15 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     } else {
         None
     };
-    if !as_dir {
-        crate::check_output(out, input, &[])?;
-    }
-    if let Some(f) = &a.stats_json {
-        crate::check_output(f, input, &[])?;
-    }
     let scene = fix_transfer(&scene, &series, *frames.last().expect("non-empty"))?;
+    outputs.check()?;
     let (w, h) = (scene.render.width, scene.render.height);
-    let tmp = temp_beside(out);
+    // The GIF or MP4 is written under a temporary name until it is whole.
+    let tmp = if as_dir {
+        PathBuf::new()
+    } else {
+        outputs.stage(out)?
+    };
     let mut sink = if as_dir {
         if out.exists() {
             let foreign = std::fs::read_dir(out)
@@ -347,17 +340,13 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         }
         Sink::Pngs { .. } => result,
     };
-    if let Err(e) = finish {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e);
-    }
-    if !as_dir {
-        std::fs::rename(&tmp, out).with_context(|| format!("renaming onto {}", out.display()))?;
-    }
+    // On an error the outputs are dropped unwritten (temporary files too).
+    finish?;
     if let Some(f) = &a.stats_json {
         let json = serde_json::to_string_pretty(&records)?;
-        voxcast::image::atomic_write(f, |w| writeln!(w, "{json}"))?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
+    outputs.commit()?;
     if !a.quiet {
         let total: f64 = records.iter().map(|r| r.seconds).sum();
         let samples: u64 = records.iter().map(|r| r.samples).sum();

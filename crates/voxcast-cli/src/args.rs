@@ -625,10 +625,10 @@ impl SceneArgs {
                 .map(|p| p.trim().parse())
                 .collect::<std::result::Result<_, _>>()
                 .map_err(|_| anyhow::anyhow!("--window {w}: expected LO,HI"))?;
-            if v.len() != 2 || v.iter().any(|x| !x.is_finite()) || v[0] >= v[1] {
-                bail!("--window {w}: expected LO,HI with LO < HI");
-            }
-            scene.transfer.window = Some([v[0], v[1]]);
+            let [lo, hi] = v[..] else {
+                bail!("--window {w}: expected LO,HI");
+            };
+            scene.transfer.window = Some([lo, hi]);
         }
         let (c, r) = (&mut scene.camera, &mut scene.render);
         if let Some(s) = &self.size {
@@ -646,15 +646,9 @@ impl SceneArgs {
             c.elevation = v;
         }
         if let Some(v) = self.zoom {
-            if v.is_nan() || v <= 0.0 {
-                bail!("--zoom {v}: must be positive");
-            }
             c.zoom = v;
         }
         if let Some(v) = self.fov {
-            if !(1.0..=170.0).contains(&v) {
-                bail!("--fov {v}: must be between 1 and 170 degrees");
-            }
             c.fov = v;
         }
         if self.ortho {
@@ -729,9 +723,32 @@ impl SceneArgs {
             r.lights
                 .push(voxcast::render::light::Light::Environment { radiance });
         }
-        r.validate()?;
         self.apply_geometry(scene)?;
+        // One set of rules for flags and scene files: the library's.
+        if let Some((field, message)) = scene.problem() {
+            match self.flag_for(&field) {
+                Some(flag) => bail!("{flag} {message}"),
+                // The render's own messages name their setting.
+                None if field == "render" => bail!("{message}"),
+                None => bail!("{field}: {message}"),
+            }
+        }
         Ok(())
+    }
+
+    /// The flag that set a scene field, when it was given.
+    fn flag_for(&self, field: &str) -> Option<&'static str> {
+        let given = match field {
+            "camera.azimuth" => ("--azimuth", self.azimuth.is_some()),
+            "camera.elevation" => ("--elevation", self.elevation.is_some()),
+            "camera.zoom" => ("--zoom", self.zoom.is_some()),
+            "camera.fov" => ("--fov", self.fov.is_some()),
+            "transfer.window" => ("--window", self.window.is_some()),
+            "input.spacing" => ("--spacing", self.open.spacing.is_some()),
+            "geometry.light" => ("--light", self.light.is_some()),
+            _ => return None,
+        };
+        given.1.then_some(given.0)
     }
 
     /// Applies `--geometry`, `--shadows` and `--light`.
@@ -761,11 +778,7 @@ impl SceneArgs {
             g.shadows = on_off("shadows", s)?;
         }
         if let Some(l) = &self.light {
-            let v: [f32; 3] = triple(l, "--light")?;
-            if !v.iter().all(|x| x.is_finite()) || v == [0.0; 3] {
-                bail!("--light {l}: expected a non-zero direction X,Y,Z");
-            }
-            g.light = Some(v);
+            g.light = Some(triple(l, "--light")?);
         }
         Ok(())
     }

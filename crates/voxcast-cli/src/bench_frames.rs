@@ -7,6 +7,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
+use std::io::Write;
 use std::path::PathBuf;
 use voxcast::bench_frames;
 
@@ -69,8 +70,12 @@ pub fn run(a: BenchFramesArgs) -> Result<()> {
         methods.insert(0, u);
     }
     let (scene, series) = scene_and_series(&a.scene, None)?;
-    for f in a.json.iter().chain(&a.chart) {
-        crate::check_output(f, &scene.input.path, &[])?;
+    let mut outputs = voxcast::files::Outputs::new([&scene.input.path]);
+    if let Some(f) = &a.json {
+        outputs.plan("--json", f, &[])?;
+    }
+    if let Some(f) = &a.chart {
+        outputs.plan("--chart", f, &["png"])?;
     }
     let frames = select(a.frames.as_deref(), a.every, series.len())?;
     let scene = fix_transfer(&scene, &series, *frames.last().expect("non-empty"))?;
@@ -109,18 +114,13 @@ pub fn run(a: BenchFramesArgs) -> Result<()> {
     }
     if let Some(f) = &a.json {
         let json = serde_json::to_string_pretty(&report)?;
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            writeln!(w, "{json}")
-        })?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
     if let Some(f) = &a.chart {
         let png = crate::frames_chart::png(&report)?;
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            w.write_all(&png)
-        })?;
+        outputs.write(f, |w| w.write_all(&png))?;
     }
+    outputs.commit()?;
     Ok(())
 }
 

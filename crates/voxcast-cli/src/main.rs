@@ -13,15 +13,18 @@ use anyhow::{bail, Context, Result};
 use args::{BenchArgs, Cli, Command, CompareArgs, InfoArgs, RenderArgs, ViewArgs};
 use clap::Parser;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
-use voxcast::scene::{Scene, BUILTIN_PREFIX};
+use voxcast::files::Outputs;
+use voxcast::scene::Scene;
 use voxcast::{metrics, Image};
 
 fn main() {
     let cli = Cli::parse();
+    // One command per process: no output may replace a file it read.
+    voxcast::files::record_inputs();
     let result = match cli.command {
         Command::Render(a) => render(*a),
         Command::Bench(a) => bench(*a),
@@ -49,13 +52,24 @@ fn render(a: RenderArgs) -> Result<()> {
         .output
         .clone()
         .unwrap_or_else(|| PathBuf::from("render.png"));
-    check_output(&out, &scene.input.path, &["png", "exr"])?;
+    // Every output is checked before any work, and written only when all
+    // of them can be.
+    let mut outputs = Outputs::new([&scene.input.path]);
+    outputs.plan("-o", &out, &["png", "exr"])?;
     if let Some(f) = &a.float_out {
-        check_output(f, &scene.input.path, &["exr"])?;
+        outputs.plan("--float-out", f, &["exr"])?;
+    }
+    if let Some(f) = &a.stats_json {
+        outputs.plan("--stats-json", f, &[])?;
+    }
+    if let Some(f) = &a.save_scene {
+        outputs.plan("--save-scene", f, &["toml"])?;
     }
     let quiet = a.quiet;
     let t_load = Instant::now();
     let prepared = scene.prepare()?;
+    // The files the readers opened (a detached header's data) are inputs too.
+    outputs.check()?;
     if !quiet {
         eprintln!("{}", loaded(&scene, &prepared, t_load));
     }
@@ -83,9 +97,9 @@ fn render(a: RenderArgs) -> Result<()> {
             .context("rendering on the GPU")?,
     };
     bar.finish_and_clear();
-    image.write(&out)?;
+    image.write_into(&mut outputs, &out)?;
     if let Some(f) = &a.float_out {
-        image.write_exr(f)?;
+        image.write_exr_into(&mut outputs, f)?;
     }
     if let Some(f) = &a.stats_json {
         // The core's stats plus the device that rendered.
@@ -94,14 +108,13 @@ fn render(a: RenderArgs) -> Result<()> {
             m.insert("device".into(), device.describe().into());
         }
         let json = serde_json::to_string_pretty(&value)?;
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            writeln!(w, "{json}")
-        })?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
     if let Some(f) = &a.save_scene {
-        scene.resolved(&prepared).save(f)?;
+        let text = scene.resolved(&prepared).to_toml(f)?;
+        outputs.write(f, |w| w.write_all(text.as_bytes()))?;
     }
+    outputs.commit()?;
     if !quiet {
         eprintln!(
             "wrote {} ({}×{}) in {:.3} s on {}: {} rays, {} samples ({:.1} M/s), {} early-terminated",
@@ -235,15 +248,15 @@ impl voxcast::bench::MethodRenderer for GpuMethods<'_> {
 
 fn view(a: ViewArgs) -> Result<()> {
     let scene = a.scene()?;
-    let input = scene.input.path.clone();
+    let mut outputs = Outputs::new([&scene.input.path]);
     if let Some(f) = &a.screenshot {
-        check_output(f, &input, &["png"])?;
+        outputs.plan("--screenshot", f, &["png"])?;
     }
     if let Some(f) = &a.save_scene {
-        check_output(f, &input, &["toml"])?;
+        outputs.plan("--save-scene", f, &["toml"])?;
     }
     if let Some(f) = &a.stats_json {
-        check_output(f, &input, &[])?;
+        outputs.plan("--stats-json", f, &[])?;
     }
     if let Some(s) = a.orbit {
         if !(s.is_finite() && s > 0.0 && s <= 600.0) {
@@ -318,11 +331,9 @@ fn view(a: ViewArgs) -> Result<()> {
     }
     if let Some(f) = &a.stats_json {
         let json = serde_json::to_string_pretty(&stats)?;
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            writeln!(w, "{json}")
-        })?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
+    outputs.commit()?;
     Ok(())
 }
 
@@ -333,20 +344,17 @@ fn bench(a: BenchArgs) -> Result<()> {
         bail!("--repeat 0: at least one timed render per method is needed");
     }
     let scene = a.scene.scene()?;
+    let mut outputs = Outputs::new([&scene.input.path]);
     if let Some(f) = &a.json {
-        check_output(f, &scene.input.path, &[])?;
+        outputs.plan("--json", f, &[])?;
     }
     if let Some(f) = &a.chart {
-        check_output(f, &scene.input.path, &["png"])?;
-    }
-    if let (Some(j), Some(c)) = (&a.json, &a.chart) {
-        if j == c {
-            bail!("--json and --chart both name {}", j.display());
-        }
+        outputs.plan("--chart", f, &["png"])?;
     }
     let quiet = a.quiet;
     let t_load = Instant::now();
     let prepared = scene.prepare()?;
+    outputs.check()?;
     if !quiet {
         eprintln!("{}", loaded(&scene, &prepared, t_load));
     }
@@ -356,7 +364,10 @@ fn bench(a: BenchArgs) -> Result<()> {
                 "--target-psnr measures the CPU renderer only; drop --device or use --device cpu"
             );
         }
-        return time_to_quality(&a, &scene, &prepared, methods, target);
+        if a.chart.is_some() {
+            bail!("--chart draws the methods table; with --target-psnr, use --json");
+        }
+        return time_to_quality(&a, &scene, &prepared, methods, target, outputs);
     }
     // `auto` picks the CPU when any method has no GPU version; under `gpu`
     // such a method is reported as failed in the table (the baseline
@@ -429,24 +440,15 @@ fn bench(a: BenchArgs) -> Result<()> {
     } else {
         print!("{}", bench::text_table(&report));
     }
-    // Both outputs are made before either is written, so a failure leaves none.
-    let json = serde_json::to_string_pretty(&report)?;
-    let png = match &a.chart {
-        Some(_) => Some(chart::png(&report).context("drawing the chart")?),
-        None => None,
-    };
     if let Some(f) = &a.json {
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            writeln!(w, "{json}")
-        })?;
+        let json = serde_json::to_string_pretty(&report)?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
-    if let (Some(f), Some(bytes)) = (&a.chart, &png) {
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            w.write_all(bytes)
-        })?;
+    if let Some(f) = &a.chart {
+        let png = chart::png(&report).context("drawing the chart")?;
+        outputs.write(f, |w| w.write_all(&png))?;
     }
+    outputs.commit()?;
     let failures = report.failures();
     if !failures.is_empty() {
         let list: Vec<String> = failures.iter().map(|(m, e)| format!("{m}: {e}")).collect();
@@ -467,6 +469,7 @@ fn time_to_quality(
     prepared: &voxcast::scene::Prepared,
     methods: Vec<voxcast::render::MethodSpec>,
     target: f64,
+    mut outputs: Outputs,
 ) -> Result<()> {
     let mut methods = methods;
     if !methods.iter().any(|m| m.to_string() == "uniform")
@@ -493,11 +496,9 @@ fn time_to_quality(
     print!("{}", voxcast::ttq::markdown(&report));
     if let Some(f) = &a.json {
         let json = serde_json::to_string_pretty(&report)?;
-        voxcast::image::atomic_write(f, |w| {
-            use std::io::Write;
-            writeln!(w, "{json}")
-        })?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
+    outputs.commit()?;
     Ok(())
 }
 
@@ -520,67 +521,6 @@ fn loaded(scene: &Scene, prepared: &voxcast::scene::Prepared, since: Instant) ->
         .as_ref()
         .map(|g| format!("\n{}", g.describe()))
         .unwrap_or_default()
-}
-
-/// Refuses to write over an input file, into a missing folder, or with an
-/// unknown extension (any extension when `exts` is empty).
-fn check_output(out: &Path, input: &str, exts: &[&str]) -> Result<()> {
-    let ext = out
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    if !exts.is_empty() && !exts.contains(&ext.as_str()) {
-        bail!(
-            "{}: output must end in {}",
-            out.display(),
-            exts.iter()
-                .map(|e| format!(".{e}"))
-                .collect::<Vec<_>>()
-                .join(" or ")
-        );
-    }
-    if !input.starts_with(BUILTIN_PREFIX) && writes_into_input(out, Path::new(input)) {
-        bail!(
-            "{}: refusing to write over or into the input {input}",
-            out.display()
-        );
-    }
-    if out.is_dir() {
-        bail!("{}: is a folder; give a file name", out.display());
-    }
-    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
-        if !parent.is_dir() {
-            bail!(
-                "{}: the folder {} does not exist",
-                out.display(),
-                parent.display()
-            );
-        }
-    }
-    Ok(())
-}
-
-/// True when `out` is the input file, lies inside the input folder (a slice
-/// stack would pick it up), or matches the input glob.
-fn writes_into_input(out: &Path, input: &Path) -> bool {
-    let Some(name) = out.file_name() else {
-        return false;
-    };
-    let parent = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let Ok(out_abs) = parent.canonicalize().map(|p| p.join(name)) else {
-        return false;
-    };
-    if let Ok(inp) = input.canonicalize() {
-        return out_abs == inp || (inp.is_dir() && out_abs.starts_with(&inp));
-    }
-    // A glob of slices: refuse an output the pattern would match.
-    let pattern = std::path::absolute(input).unwrap_or_else(|_| input.to_path_buf());
-    glob::Pattern::new(&pattern.to_string_lossy())
-        .map(|p| p.matches_path(&out_abs))
-        .unwrap_or(false)
 }
 
 fn info(a: InfoArgs) -> Result<()> {
@@ -716,8 +656,9 @@ fn sparkline(counts: &[u64]) -> String {
 }
 
 fn compare(a: CompareArgs) -> Result<()> {
-    let x = Image::read(&a.a).with_context(|| format!("reading {}", a.a.display()))?;
-    let y = Image::read(&a.b).with_context(|| format!("reading {}", a.b.display()))?;
+    // The library's errors name the file.
+    let x = Image::read(&a.a)?;
+    let y = Image::read(&a.b)?;
     let psnr = metrics::psnr(&x, &y)?;
     let ssim = metrics::ssim(&x, &y)?;
     if a.json {

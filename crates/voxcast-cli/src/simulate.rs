@@ -107,7 +107,7 @@ fn smoke(a: SmokeArgs) -> Result<()> {
         .map_err(|(f, m)| anyhow::anyhow!("scene field `{f}`: {m}"))?;
     if let Some(f) = &a.save_scene {
         let text = scene.to_toml();
-        voxcast::image::atomic_write(f, |w| {
+        voxcast::files::write_file(f, |w| {
             use std::io::Write;
             w.write_all(
                 b"# voxcast smoke scene: `voxcast simulate smoke --scene THIS_FILE -o DIR`\n",

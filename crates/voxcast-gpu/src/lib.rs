@@ -929,7 +929,7 @@ impl GpuRenderer {
         camera: &CameraParams,
         params: &RenderParams,
     ) -> Result<(Image, RenderStats), GpuError> {
-        params.validate()?;
+        params.validate_for(&self.volume)?;
         if let Some(l) = &camera.look_at {
             l.validate().map_err(voxcast::Error::invalid)?;
         }
@@ -1278,6 +1278,7 @@ impl GpuRenderer {
             interpolations: sum[3],
             gradient_interpolations: 6 * sum[4],
             early_terminated: sum[5],
+            capped_paths: 0,
             seconds: start.elapsed().as_secs_f64(),
         };
         Ok((image, stats))

@@ -49,7 +49,7 @@ impl Rgb8 {
                 self.height
             )));
         }
-        voxcast::image::atomic_write(path, |f| {
+        voxcast::files::write_file(path, |f| {
             let mut enc = png::Encoder::new(f, self.width, self.height);
             enc.set_color(png::ColorType::Rgb);
             enc.set_depth(png::BitDepth::Eight);

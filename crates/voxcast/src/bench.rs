@@ -24,7 +24,8 @@
 //! over all methods instead of penalising one.
 
 use crate::error::{Error, Result};
-use crate::image::{atomic_write, Image};
+use crate::files::write_file;
+use crate::image::Image;
 use crate::metrics;
 use crate::render::{Method, MethodSpec, RenderParams, RenderStats, Renderer};
 use crate::scene::{Prepared, Scene, BUILTIN_PREFIX};
@@ -538,7 +539,7 @@ fn store_cached(dir: &Path, key: u64, img: &Image, meta: &CacheMeta) -> Result<P
     img.write_exr(&exr)?;
     let text = serde_json::to_string_pretty(meta)
         .map_err(|e| Error::invalid(format!("cache metadata: {e}")))?;
-    atomic_write(&json, |w| {
+    write_file(&json, |w| {
         use std::io::Write;
         writeln!(w, "{text}")
     })?;

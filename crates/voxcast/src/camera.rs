@@ -21,6 +21,7 @@ pub enum Projection {
 
 /// How the user places the camera (plain data, part of the scene).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct CameraParams {
     pub projection: Projection,
@@ -42,6 +43,7 @@ pub struct CameraParams {
 /// with the vertical field of view of [`CameraParams::fov`]:
 /// `look_at = { origin = [0, -4, 1], target = [0, 0, 0], up = [0, 0, 1] }`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct LookAt {
     pub origin: [f32; 3],
     pub target: [f32; 3],

@@ -3,34 +3,112 @@
 
 use std::path::{Path, PathBuf};
 
-/// The library's error type.
-#[derive(Debug, thiserror::Error)]
+/// The library's error type. Its text quotes what files say through
+/// [`quote`]: control bytes are escaped and long values cut, so a hostile
+/// header cannot drive the terminal or flood it.
+#[derive(Debug)]
 pub enum Error {
-    /// An operating-system error while reading or writing `path`.
-    #[error("{path}: {source}")]
+    /// An operating-system error while reading or writing `path` (its text
+    /// carries the OS error, so it is not repeated as a `source`).
     Io {
         path: PathBuf,
-        #[source]
         source: std::io::Error,
     },
     /// A file whose content does not match its format: `field` holds what was
     /// found, `expected` what the format (or the rest of the file) demands.
-    #[error("{path}: field `{field}`: {message}")]
     Format {
         path: PathBuf,
         field: String,
         message: String,
     },
     /// A format or a variant of one that voxcast does not read (yet).
-    #[error("{path}: unsupported: {message}")]
     Unsupported { path: PathBuf, message: String },
     /// Invalid parameters that did not come from a file (command line, scene).
-    #[error("{0}")]
     Invalid(String),
     /// A render stopped early because its cancel flag was raised
     /// ([`crate::render::Renderer::render_cancellable`]).
-    #[error("the render was cancelled")]
     Cancelled,
+}
+
+impl std::fmt::Display for Error {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Error::Io { path, source } => write!(f, "{}: {source}", quote_path(path)),
+            Error::Format {
+                path,
+                field,
+                message,
+            } => write!(
+                f,
+                "{}: field `{}`: {}",
+                quote_path(path),
+                quote_cut(field, 120),
+                quote(message)
+            ),
+            Error::Unsupported { path, message } => {
+                write!(f, "{}: unsupported: {}", quote_path(path), quote(message))
+            }
+            Error::Invalid(m) => f.write_str(&quote(m)),
+            Error::Cancelled => f.write_str("the render was cancelled"),
+        }
+    }
+}
+
+impl std::error::Error for Error {}
+
+/// Longest message shown whole; longer ones keep their head and tail.
+const MAX_MESSAGE: usize = 600;
+
+/// `s` made safe to print: control characters (but newlines) escaped as
+/// `\x1b`, `\u{9b}`…, and cut in the middle when longer than 600
+/// characters (the head names the field, the tail says what was expected).
+pub fn quote(s: &str) -> String {
+    quote_cut(s, MAX_MESSAGE)
+}
+
+/// [`quote`] with a chosen length.
+pub fn quote_cut(s: &str, max: usize) -> String {
+    let escaped = escape_controls(s);
+    let n = escaped.chars().count();
+    if n <= max {
+        return escaped;
+    }
+    let tail = max / 4;
+    let head = max - tail;
+    let mut out: String = escaped.chars().take(head).collect();
+    out.push_str(&format!(" …[{} characters cut]… ", n - head - tail));
+    out.extend(escaped.chars().skip(n - tail));
+    out
+}
+
+/// A path made safe to print (see [`quote`]).
+pub fn quote_path(p: &Path) -> String {
+    quote_cut(&p.display().to_string(), 300)
+}
+
+fn escape_controls(s: &str) -> String {
+    if !s.chars().any(needs_escape) {
+        return s.to_string();
+    }
+    let mut out = String::with_capacity(s.len() + 8);
+    for c in s.chars() {
+        match c {
+            '\t' => out.push_str("\\t"),
+            '\r' => out.push_str("\\r"),
+            c if needs_escape(c) && (c as u32) < 0x100 => {
+                out.push_str(&format!("\\x{:02x}", c as u32))
+            }
+            c if needs_escape(c) => out.push_str(&format!("\\u{{{:x}}}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// Control characters (C0 but newline, DEL, C1), bidirectional overrides
+/// and the replacement character from undecodable bytes.
+fn needs_escape(c: char) -> bool {
+    (c.is_control() && c != '\n') || matches!(c, '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
 }
 
 /// Shorthand for results of this library.
@@ -70,5 +148,43 @@ impl Error {
     /// Invalid parameters (not from a file).
     pub fn invalid(message: impl Into<String>) -> Self {
         Error::Invalid(message.into())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_text_in_messages_is_escaped_and_cut() {
+        let e = Error::format(
+            "a\x1b[2Jb.nrrd",
+            "type",
+            format!("`\x1b]0;pwned\x07{}` is not a type", "v".repeat(3000)),
+        );
+        let s = e.to_string();
+        assert!(!s.chars().any(|c| c.is_control()), "{s:?}");
+        assert!(s.contains("\\x1b[2J") && s.contains("\\x07"), "{s}");
+        assert!(s.len() < 900 && s.ends_with("is not a type"), "{s}");
+        assert!(s.contains("characters cut"), "{s}");
+    }
+
+    #[test]
+    fn os_errors_are_said_once() {
+        let io = std::fs::read("/no/such/file").unwrap_err();
+        let e = Error::io("/no/such/file", io);
+        let chain = format!("{:#}", anyhow_like(&e));
+        assert_eq!(chain.matches("os error").count(), 1, "{chain}");
+    }
+
+    /// The message and its sources, as `anyhow`'s `{:#}` prints them.
+    fn anyhow_like(e: &dyn std::error::Error) -> String {
+        let mut s = e.to_string();
+        let mut src = e.source();
+        while let Some(x) = src {
+            s += &format!(": {x}");
+            src = x.source();
+        }
+        s
     }
 }

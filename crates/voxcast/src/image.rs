@@ -1,11 +1,12 @@
 //! Images: linear RGBA f32 pixels, encoded to sRGB 8-bit only on output.
-//! Files are written to a temporary name beside the target and renamed, so an
-//! interrupted run never leaves a half-written image.
+//! Files are written through [`Outputs`]: under a temporary name beside the
+//! target, renamed into place only when complete.
 
 use crate::error::{Error, Result};
+use crate::files::Outputs;
 use crate::transfer::{linear_to_srgb, srgb_to_linear};
-use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::io::Write;
+use std::path::Path;
 
 /// A linear-light RGBA image, row 0 at the top. RGB is already composited
 /// over the background; A is the volume's coverage.
@@ -45,49 +46,66 @@ impl Image {
             .collect()
     }
 
-    /// Writes an 8-bit sRGB PNG (RGB).
-    pub fn write_png(&self, path: &Path) -> Result<()> {
+    /// Encodes an 8-bit sRGB PNG (RGB) into `w`.
+    fn encode_png(&self, w: &mut impl Write) -> std::io::Result<()> {
         let data = self.to_srgb8();
-        atomic_write(path, |f| {
-            let mut enc = png::Encoder::new(f, self.width, self.height);
-            enc.set_color(png::ColorType::Rgb);
-            enc.set_depth(png::BitDepth::Eight);
-            enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-            let mut w = enc.write_header().map_err(std::io::Error::other)?;
-            w.write_image_data(&data).map_err(std::io::Error::other)?;
-            w.finish().map_err(std::io::Error::other)?;
-            Ok(())
-        })
+        let mut enc = png::Encoder::new(w, self.width, self.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let mut w = enc.write_header().map_err(std::io::Error::other)?;
+        w.write_image_data(&data).map_err(std::io::Error::other)?;
+        w.finish().map_err(std::io::Error::other)
     }
 
-    /// Writes a linear float RGBA OpenEXR file (for measurements).
-    pub fn write_exr(&self, path: &Path) -> Result<()> {
-        let tmp = temp_path(path);
+    /// Writes a linear float RGBA OpenEXR file at `tmp` (errors name `path`).
+    fn encode_exr(&self, tmp: &Path, path: &Path) -> Result<()> {
         let w = self.width as usize;
-        let res = exr::prelude::write_rgba_file(&tmp, w, self.height as usize, |x, y| {
+        exr::prelude::write_rgba_file(tmp, w, self.height as usize, |x, y| {
             let p = self.pixels[y * w + x];
             (p[0], p[1], p[2], p[3])
-        });
-        if let Err(e) = res {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(Error::io(path, std::io::Error::other(e.to_string())));
-        }
-        std::fs::rename(&tmp, path).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            Error::io(path, e)
         })
+        .map_err(|e| Error::io(path, std::io::Error::other(e.to_string())))
     }
 
-    /// Writes PNG or EXR by the extension of `path`.
-    pub fn write(&self, path: &Path) -> Result<()> {
+    /// Adds the image to a command's outputs: an 8-bit sRGB PNG or a linear
+    /// float RGBA EXR by the extension of `path`.
+    pub fn write_into(&self, outputs: &mut Outputs, path: &Path) -> Result<()> {
         match extension(path).as_str() {
-            "png" => self.write_png(path),
-            "exr" => self.write_exr(path),
+            "png" => outputs.write(path, |w| self.encode_png(w)),
+            "exr" => self.write_exr_into(outputs, path),
             e => Err(Error::invalid(format!(
                 "{}: unknown image extension `{e}` (use .png or .exr)",
                 path.display()
             ))),
         }
+    }
+
+    /// Adds the image to a command's outputs as a linear float RGBA EXR,
+    /// whatever the extension of `path`.
+    pub fn write_exr_into(&self, outputs: &mut Outputs, path: &Path) -> Result<()> {
+        outputs.write_with(path, |tmp| self.encode_exr(tmp, path))
+    }
+
+    /// Writes PNG or EXR by the extension of `path`, atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let mut o = Outputs::default();
+        self.write_into(&mut o, path)?;
+        o.commit()
+    }
+
+    /// Writes an 8-bit sRGB PNG (RGB), whatever the extension.
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        let mut o = Outputs::default();
+        o.write(path, |w| self.encode_png(w))?;
+        o.commit()
+    }
+
+    /// Writes a linear float RGBA OpenEXR file, whatever the extension.
+    pub fn write_exr(&self, path: &Path) -> Result<()> {
+        let mut o = Outputs::default();
+        self.write_exr_into(&mut o, path)?;
+        o.commit()
     }
 
     /// Reads a PNG (8 or 16 bit; grey, grey+alpha, RGB, RGBA or palette) or an
@@ -107,7 +125,7 @@ fn extension(path: &Path) -> String {
 }
 
 fn read_png(path: &Path) -> Result<Image> {
-    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let (f, _) = crate::files::open(path)?;
     let mut dec = png::Decoder::new(std::io::BufReader::new(f));
     dec.set_transformations(png::Transformations::EXPAND);
     let mut reader = dec
@@ -153,6 +171,8 @@ fn read_png(path: &Path) -> Result<Image> {
 }
 
 fn read_exr(path: &Path) -> Result<Image> {
+    // The EXR crate opens the path itself: refuse a device or a pipe first.
+    crate::files::regular_file(path)?;
     let img = exr::prelude::read_first_rgba_layer_from_file(
         path,
         |res, _| Image::new(res.width() as u32, res.height() as u32),
@@ -162,38 +182,6 @@ fn read_exr(path: &Path) -> Result<Image> {
     )
     .map_err(|e| Error::format(path, "EXR", e.to_string()))?;
     Ok(img.layer_data.channel_data.pixels)
-}
-
-/// A temporary name beside `path` (same folder, so the rename is atomic).
-fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "out".into());
-    let tmp = format!(".{name}.{}.tmp", std::process::id());
-    path.with_file_name(tmp)
-}
-
-/// Writes a file through `write` to a temporary name, then renames it over
-/// `path`; on error the temporary file is removed and `path` is untouched.
-pub fn atomic_write(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<()> {
-    let tmp = temp_path(path);
-    let result = (|| {
-        let f = std::fs::File::create(&tmp)?;
-        let mut w = BufWriter::new(f);
-        write(&mut w)?;
-        w.flush()?;
-        w.get_ref().sync_all()?;
-        drop(w);
-        std::fs::rename(&tmp, path)
-    })();
-    result.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(path, e)
-    })
 }
 
 #[cfg(test)]
@@ -229,7 +217,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let p = dir.path().join("keep.png");
         std::fs::write(&p, b"precious").unwrap();
-        let r = atomic_write(&p, |_| Err(std::io::Error::other("boom")));
+        let r = crate::files::write_file(&p, |_| Err(std::io::Error::other("boom")));
         assert!(r.is_err());
         assert_eq!(std::fs::read(&p).unwrap(), b"precious");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -11,6 +11,7 @@ pub mod bench_frames;
 pub mod builtin;
 pub mod camera;
 pub mod error;
+pub mod files;
 pub mod geometry;
 pub mod image;
 pub mod io;

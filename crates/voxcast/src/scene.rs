@@ -37,8 +37,9 @@
 
 use crate::camera::CameraParams;
 use crate::error::{Error, Result};
+use crate::files::write_file;
 use crate::geometry::{Geometry, GeometrySpec};
-use crate::image::{atomic_write, Image};
+use crate::image::Image;
 use crate::io::OpenOptions;
 use crate::render::{RenderParams, RenderStats};
 use crate::transfer::TransferFunction;
@@ -51,11 +52,42 @@ pub const BUILTIN_PREFIX: &str = "builtin:";
 
 /// What to load.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "InputFields")]
 pub struct InputSpec {
     /// A file, folder or glob; or `builtin:NAME`.
     pub path: String,
     #[serde(flatten)]
     pub options: OpenOptions,
+}
+
+/// `[input]` as it is read: serde cannot refuse unknown keys next to a
+/// flattened struct, so the options' keys are spelled out here.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InputFields {
+    path: String,
+    #[serde(default)]
+    raw: Option<crate::io::RawLayout>,
+    #[serde(default)]
+    spacing: Option<[f32; 3]>,
+    #[serde(default)]
+    variable: Option<String>,
+    #[serde(default)]
+    time: Option<f64>,
+}
+
+impl From<InputFields> for InputSpec {
+    fn from(f: InputFields) -> InputSpec {
+        InputSpec {
+            path: f.path,
+            options: OpenOptions {
+                raw: f.raw,
+                spacing: f.spacing,
+                variable: f.variable,
+                time: f.time,
+            },
+        }
+    }
 }
 
 impl Default for InputSpec {
@@ -69,6 +101,7 @@ impl Default for InputSpec {
 
 /// Which transfer function, over which window.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct TransferSpec {
     /// A preset name, `auto` (chosen from the histogram), or a TOML file.
@@ -94,6 +127,7 @@ impl Default for TransferSpec {
 
 /// Everything a render depends on.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Scene {
     #[serde(default)]
     pub input: InputSpec,
@@ -120,15 +154,7 @@ pub struct Prepared {
 impl Scene {
     /// Reads a scene file; relative paths in it are taken from its folder.
     pub fn load(path: &Path) -> Result<Scene> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let mut scene: Scene = toml::from_str(&text).map_err(|e| {
-            let field = e
-                .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1))
-                .map(|l| format!("line {l}"))
-                .unwrap_or_else(|| "scene".into());
-            Error::format(path, field, e.message().to_string())
-        })?;
+        let mut scene: Scene = crate::files::read_toml(path)?;
         let base = path.parent().unwrap_or(Path::new("."));
         if !scene.input.path.starts_with(BUILTIN_PREFIX) {
             scene.input.path = join(base, &scene.input.path);
@@ -142,20 +168,99 @@ impl Scene {
         for m in &mut scene.geometry.meshes {
             m.path = join(base, &m.path);
         }
-        scene
-            .render
-            .validate()
-            .map_err(|e| Error::format(path, "render", e.to_string()))?;
-        if let Some(l) = &scene.camera.look_at {
-            l.validate()
-                .map_err(|e| Error::format(path, "camera.look_at", e))?;
+        if let Some((field, message)) = scene.problem() {
+            return Err(Error::format(path, field, message));
         }
         Ok(scene)
+    }
+
+    /// Checks every value a user can set, from flags or a file alike: the
+    /// error names the field (`camera.fov`, `transfer.window`, …).
+    pub fn validate(&self) -> Result<()> {
+        match self.problem() {
+            Some((field, message)) => Err(Error::invalid(format!("{field}: {message}"))),
+            None => Ok(()),
+        }
+    }
+
+    /// The first invalid value, as (field, what is wrong); `None` when the
+    /// scene is valid. See [`Scene::validate`].
+    pub fn problem(&self) -> Option<(String, String)> {
+        let bad = |field: &str, message: String| Some((field.to_string(), message));
+        let c = &self.camera;
+        for (field, v) in [
+            ("camera.azimuth", c.azimuth),
+            ("camera.elevation", c.elevation),
+        ] {
+            if !v.is_finite() {
+                return bad(field, format!("{v}: expected a finite angle in degrees"));
+            }
+        }
+        if !(c.zoom.is_finite() && c.zoom > 0.0) {
+            return bad(
+                "camera.zoom",
+                format!("{}: must be a positive number", c.zoom),
+            );
+        }
+        if !(1.0..=170.0).contains(&c.fov) {
+            return bad(
+                "camera.fov",
+                format!("{}: must be between 1 and 170 degrees", c.fov),
+            );
+        }
+        if let Some(l) = &c.look_at {
+            if let Err(e) = l.validate() {
+                return bad("camera.look_at", e);
+            }
+        }
+        if let Some([lo, hi]) = self.transfer.window {
+            if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+                return bad(
+                    "transfer.window",
+                    format!("[{lo}, {hi}]: expected [LO, HI] with finite LO < HI"),
+                );
+            }
+        }
+        if let Some(m) = &self.transfer.map {
+            if let Err(e) = m.validate() {
+                return bad("transfer.map", e);
+            }
+        }
+        if let Some(s) = self.input.options.spacing {
+            if s.iter().any(|x| !(x.is_finite() && *x > 0.0)) {
+                return bad(
+                    "input.spacing",
+                    format!("{s:?}: each spacing must be a positive number"),
+                );
+            }
+        }
+        if let Some(l) = self.geometry.light {
+            if !l.iter().all(|x| x.is_finite()) || l == [0.0; 3] {
+                return bad(
+                    "geometry.light",
+                    format!("{l:?}: expected a non-zero direction [x, y, z]"),
+                );
+            }
+        }
+        if let Err(e) = self.render.validate() {
+            return bad("render", e.to_string());
+        }
+        None
     }
 
     /// Writes the scene to `path` (atomically), with file paths relative to
     /// the scene file's folder.
     pub fn save(&self, path: &Path) -> Result<()> {
+        let text = self.to_toml(path)?;
+        write_file(path, |f| {
+            use std::io::Write;
+            f.write_all(text.as_bytes())
+        })
+    }
+
+    /// The scene as the TOML text of a file at `path` (file paths in it made
+    /// relative to that file's folder).
+    pub fn to_toml(&self, path: &Path) -> Result<String> {
         let mut s = self.clone();
         let base = path.parent().unwrap_or(Path::new("."));
         if !s.input.path.starts_with(BUILTIN_PREFIX) {
@@ -172,12 +277,9 @@ impl Scene {
         }
         let text = toml::to_string(&s)
             .map_err(|e| Error::invalid(format!("cannot write the scene: {e}")))?;
-        let header = "# voxcast scene: render it with `voxcast render --scene THIS_FILE`\n";
-        atomic_write(path, |f| {
-            use std::io::Write;
-            f.write_all(header.as_bytes())?;
-            f.write_all(text.as_bytes())
-        })
+        Ok(format!(
+            "# voxcast scene: render it with `voxcast render --scene THIS_FILE`\n{text}"
+        ))
     }
 
     fn map_is_file(&self) -> bool {
@@ -208,12 +310,9 @@ impl Scene {
 
     /// Resolves the transfer function and window for an already loaded volume.
     pub fn prepare_with(&self, volume: Volume) -> Result<Prepared> {
+        self.validate()?;
         let tf = match &self.transfer.map {
-            Some(m) => {
-                m.validate()
-                    .map_err(|e| Error::invalid(format!("transfer.map: {e}")))?;
-                m.clone()
-            }
+            Some(m) => m.clone(),
             None => TransferFunction::resolve(&self.transfer.tf, &volume)?,
         };
         let window = tf.window_for(&volume, self.transfer.window);

@@ -19,6 +19,7 @@ const MAX_ALPHA: f32 = 0.999_999;
 
 /// A colour and opacity map over normalised values.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct TransferFunction {
     /// Colour control points `[value, r, g, b]`, sRGB in 0…1, sorted by value.
     pub color: Vec<[f32; 4]>,
@@ -186,9 +187,7 @@ impl TransferFunction {
     /// window = [-1000.0, 2000.0]   # optional, in data units
     /// ```
     pub fn from_toml_file(path: &Path) -> Result<TransferFunction> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let tf: TransferFunction = toml::from_str(&text)
-            .map_err(|e| Error::format(path, "transfer function", e.message().to_string()))?;
+        let tf: TransferFunction = crate::files::read_toml(path)?;
         tf.validate()
             .map_err(|m| Error::format(path, "transfer function", m))?;
         Ok(tf)

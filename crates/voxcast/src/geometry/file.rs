@@ -88,6 +88,7 @@ pub struct MeshDef {
 
 /// The shapes of a geometry file.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct GeometryDef {
     #[serde(default, rename = "box", skip_serializing_if = "Vec::is_empty")]
     pub boxes: Vec<BoxDef>,

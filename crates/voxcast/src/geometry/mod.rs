@@ -227,15 +227,7 @@ impl Parts {
 
 /// Reads and parses a geometry TOML file.
 fn read_def(path: &Path) -> Result<GeometryDef> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    toml::from_str(&text).map_err(|e| {
-        let field = e
-            .span()
-            .map(|s| text[..s.start.min(text.len())].lines().count().max(1))
-            .map(|l| format!("line {l}"))
-            .unwrap_or_else(|| "geometry".into());
-        Error::format(path, field, e.message().to_string())
-    })
+    crate::files::read_toml(path)
 }
 
 impl Geometry {

@@ -26,7 +26,7 @@ pub fn load_obj(path: &Path, scale: f32, translate: Vec3) -> Result<ObjMesh> {
             path.display()
         )));
     }
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::files::open(path)?.0;
     let mut reader = std::io::BufReader::new(file);
     let opts = tobj::LoadOptions {
         triangulate: true,

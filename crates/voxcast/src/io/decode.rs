@@ -187,7 +187,7 @@ pub(crate) fn read_text(path: &Path, offset: u64, field: &str) -> Result<String>
             format!("data should start at byte {offset} but the file has only {len} bytes"),
         ));
     };
-    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::files::open(path)?.0;
     f.seek(SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
     let bytes = read_exact_or_short(f, n, path, field)?;
@@ -319,7 +319,7 @@ pub(crate) struct LineReader {
 
 impl LineReader {
     pub(crate) fn open(path: &Path) -> Result<Self> {
-        let f = File::open(path).map_err(|e| Error::io(path, e))?;
+        let f = crate::files::open(path)?.0;
         Ok(LineReader {
             path: path.to_path_buf(),
             reader: BufReader::new(f),
@@ -388,7 +388,7 @@ pub(crate) fn check_header_size(path: &Path, lines: &LineReader) -> Result<()> {
 /// The byte position after `n` more newlines from `start`, read in blocks
 /// (a data file may have no newline at all: nothing is kept in memory).
 pub(crate) fn skip_lines(path: &Path, start: u64, n: u64, field: &str) -> Result<u64> {
-    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::files::open(path)?.0;
     f.seek(SeekFrom::Start(start))
         .map_err(|e| Error::io(path, e))?;
     let mut r = BufReader::new(f);

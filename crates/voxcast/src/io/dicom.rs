@@ -263,7 +263,7 @@ fn get_float(obj: &Obj, tag: Tag) -> Option<f64> {
 fn check_lengths(path: &Path) -> Result<()> {
     use std::io::{BufReader, Read};
     const UNDEFINED: u32 = u32::MAX;
-    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let file = crate::files::open(path)?.0;
     let len = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut r = BufReader::new(file);
     let mut pos = 0u64;

@@ -280,7 +280,7 @@ pub fn parse_smv(path: &Path) -> Result<Smv> {
             format!("{len} bytes is too large for a .smv index file"),
         ));
     }
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::files::read_bytes(path, u64::MAX)?;
     let text = String::from_utf8_lossy(&bytes);
     parse_smv_text(path, &text)
 }
@@ -637,14 +637,8 @@ fn le_f32(b: &[u8], off: usize) -> f32 {
 }
 
 fn open_data(path: &Path, what: &str, smv: &Path) -> Result<(BufReader<std::fs::File>, u64)> {
-    let f = std::fs::File::open(path).map_err(|e| {
-        Error::format(
-            smv,
-            what,
-            format!("cannot open data file {}: {e}", path.display()),
-        )
-    })?;
-    let len = f.metadata().map_err(|e| Error::io(path, e))?.len();
+    let (f, len) = crate::files::open(path)
+        .map_err(|e| Error::format(smv, what, format!("cannot open the data file: {e}")))?;
     Ok((BufReader::new(f), len))
 }
 

@@ -244,7 +244,7 @@ fn probe(path: &Path) -> Result<Source> {
 type PngReader = png::Reader<BufReader<std::fs::File>>;
 
 fn open_png(path: &Path) -> Result<PngReader> {
-    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let f = crate::files::open(path)?.0;
     let mut dec = png::Decoder::new(BufReader::new(f));
     // EXPAND: palette → RGB, 1/2/4-bit gray → 8-bit; 16-bit stays 16-bit.
     dec.set_transformations(png::Transformations::EXPAND);
@@ -281,7 +281,7 @@ fn probe_png(path: &Path) -> Result<Page> {
 }
 
 fn open_tiff(path: &Path) -> Result<tiff::decoder::Decoder<BufReader<std::fs::File>>> {
-    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let f = crate::files::open(path)?.0;
     tiff::decoder::Decoder::new(BufReader::new(f))
         .map_err(|e| Error::format(path, "TIFF header", e.to_string()))
 }

@@ -34,7 +34,6 @@ use super::decode::{
 use super::util::{check_dims, file_len, read_exact_or_short, MAX_DEFLATE_RATIO};
 use crate::error::{Error, Result};
 use crate::volume::{Volume, VoxelData};
-use std::fs::File;
 use std::io::{BufRead, BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
@@ -469,7 +468,7 @@ fn read_compressed(
             format!("the header describes {n_bytes} bytes of voxels but {csize} compressed bytes cannot hold that many"),
         ));
     }
-    let mut f = File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::files::open(path)?.0;
     f.seek(SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
     let mut r = BufReader::new(f.take(csize));

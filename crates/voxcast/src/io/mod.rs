@@ -30,6 +30,7 @@ use std::path::Path;
 
 /// Layout of a headerless raw file (`--raw-dims`, `--raw-type`, …).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct RawLayout {
     pub dims: [u64; 3],
     #[serde(rename = "type")]

@@ -106,7 +106,7 @@ fn is_gzip(path: &Path) -> Result<bool> {
 
 /// A reader over the file's bytes, inflated when the file is gzip.
 fn open_stream(path: &Path) -> Result<Box<dyn Read>> {
-    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let f = crate::files::open(path)?.0;
     let f = std::io::BufReader::new(f);
     Ok(if is_gzip(path)? {
         Box::new(flate2::read::MultiGzDecoder::new(f))

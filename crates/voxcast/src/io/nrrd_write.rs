@@ -7,7 +7,7 @@
 //! as a `content:` line; the data follow raw little-endian or gzip-compressed.
 
 use crate::error::Result;
-use crate::image::atomic_write;
+use crate::files::write_file;
 use crate::volume::{Volume, VoxelData};
 use std::io::Write;
 use std::path::Path;
@@ -54,7 +54,7 @@ pub fn write(path: &Path, volume: &Volume, encoding: Encoding) -> Result<()> {
         Encoding::Gzip => "encoding: gzip\n",
     };
     header += "endian: little\n\n";
-    atomic_write(path, |w| {
+    write_file(path, |w| {
         w.write_all(header.as_bytes())?;
         match encoding {
             Encoding::Raw => write_le(volume.data(), w),

@@ -11,7 +11,7 @@ pub const MAX_DEFLATE_RATIO: u64 = 1100;
 
 /// Up to the first `n` bytes of a file.
 pub fn read_head(path: &Path, n: usize) -> Result<Vec<u8>> {
-    let f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let f = crate::files::open(path)?.0;
     let mut buf = Vec::with_capacity(n);
     f.take(n as u64)
         .read_to_end(&mut buf)
@@ -79,7 +79,7 @@ pub fn read_payload(
             ),
         ));
     }
-    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::files::open(path)?.0;
     std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
     let bytes = if gzip {

@@ -253,7 +253,7 @@ fn is_on(mask: &[u64], i: usize) -> bool {
 
 /// Reads `path`.
 pub fn read(path: &Path, opts: &OpenOptions) -> Result<Volume> {
-    let buf = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let buf = crate::files::read_bytes(path, u64::MAX)?;
     let p = parse(path, &buf, opts)?;
     to_volume(path, p.name, p.grid, p.names)
 }

@@ -75,6 +75,9 @@ mod imp {
     }
 
     fn open(path: &Path) -> Result<netcdf::File> {
+        // The C library opens the path itself: record it as an input and
+        // refuse a device or a pipe first.
+        crate::files::open(path)?;
         netcdf::open(path)
             .map_err(|e| Error::format(path, "file", format!("not a readable NetCDF file: {e}")))
     }

@@ -35,6 +35,7 @@ use serde::{Deserialize, Serialize};
 
 /// One light of a scene.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(tag = "type", rename_all = "kebab-case")]
 pub enum Light {
     /// A light at infinity (the sun): direction towards it, irradiance.

@@ -38,6 +38,7 @@ use serde::{Deserialize, Serialize};
 /// Parameters of `lod` (`[render.lod]` in a scene file). Spacings are in
 /// base steps (`--step`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct LodParams {
     /// Spacing in high-contribution leaves (S3: odd).

@@ -47,7 +47,9 @@ impl Majorant {
     /// coordinates, t in world units) between `t_in` and `t_out`, front to
     /// back, until `f` returns true; returns whether it did (false: the
     /// ray left the medium). Exponential steps restart at each segment's
-    /// start with the segment's rate — exact, by memorylessness.
+    /// start with the segment's rate — exact, by memorylessness. `stats`
+    /// counts the collisions; the walk stops (returning true) when it
+    /// reaches `budget`, so no walk is unbounded.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn walk(
@@ -58,6 +60,7 @@ impl Majorant {
         t_out: f32,
         rng: &mut Rng,
         stats: &mut u64,
+        budget: u64,
         mut f: impl FnMut(f32, f32, &mut Rng) -> bool,
     ) -> bool {
         let mut segment = |ta: f32, tb: f32, s: f32, rng: &mut Rng| -> bool {
@@ -69,6 +72,9 @@ impl Majorant {
                 t -= rng.uniform_open0().ln() / s;
                 if t >= tb {
                     return false;
+                }
+                if *stats >= budget {
+                    return true;
                 }
                 *stats += 1;
                 if f(t, s, rng) {

@@ -133,6 +133,7 @@ impl Iterator for BlockWalker {
 /// (voxels; rounded to powers of two times `step` too). Blocks that the
 /// transfer function makes transparent take `max_step`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct AdaptiveParams {
     /// The `k·|MN|/|MS|` at which the base step is used.
@@ -178,6 +179,7 @@ impl AdaptiveParams {
 /// one of three ranges split at `bounds`, and the step to the next sample is
 /// that range's entry in `steps` (voxels).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct ThresholdParams {
     /// Range boundaries `[a, b]`: `[0, a)`, `[a, b)`, `[b, 1]`.

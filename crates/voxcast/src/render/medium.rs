@@ -31,6 +31,7 @@ pub enum MajorantKind {
 
 /// The medium: see the module docs.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct MediumParams {
     /// Extinction coefficient at density 1, per world unit.
@@ -59,7 +60,37 @@ impl Default for MediumParams {
     }
 }
 
+/// The largest optical depth (extinction × the diagonal of the medium's
+/// box) a render accepts. Far past anything that lets light through — a
+/// thick cumulus is a few hundred — while delta tracking's cost per
+/// segment grows with it: beyond it, `scale` is a mistake, not a medium.
+pub const MAX_OPTICAL_DEPTH: f32 = 1e6;
+
 impl MediumParams {
+    /// The medium's box in world units: its own, or the volume's extent.
+    pub fn world_box(&self, volume: &crate::volume::Volume) -> (glam::Vec3, glam::Vec3) {
+        match self.r#box {
+            Some([lo, hi]) => (lo.into(), hi.into()),
+            None => volume.world_bounds(),
+        }
+    }
+
+    /// Refuses an extinction whose optical depth across the medium's box
+    /// exceeds [`MAX_OPTICAL_DEPTH`], naming the largest scale that fits.
+    pub fn check_optical_depth(&self, volume: &crate::volume::Volume) -> Result<(), String> {
+        let (lo, hi) = self.world_box(volume);
+        let diagonal = (hi - lo).length().max(f32::MIN_POSITIVE);
+        let depth = self.scale as f64 * diagonal as f64;
+        if depth > MAX_OPTICAL_DEPTH as f64 {
+            return Err(format!(
+                "medium.scale {:e}: the optical depth across the volume (scale × its diagonal {diagonal:.4}) is {depth:.3e}, above {MAX_OPTICAL_DEPTH:.0e}: no light would get through and each path would take millions of steps; use a scale below {:.4e}",
+                self.scale,
+                MAX_OPTICAL_DEPTH as f64 / diagonal as f64
+            ));
+        }
+        Ok(())
+    }
+
     /// Checks the numbers a user may get wrong.
     pub fn validate(&self) -> Result<(), String> {
         if !(self.scale.is_finite() && self.scale >= 0.0) {

@@ -230,6 +230,7 @@ pub enum Order {
 /// Everything about a render that is not the volume, the transfer function
 /// or the camera.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct RenderParams {
     pub width: u32,
@@ -314,6 +315,18 @@ impl RenderParams {
     }
 
     /// Checks the numbers a user may get wrong.
+    /// [`RenderParams::validate`], and what depends on the volume: the
+    /// physical methods' optical depth.
+    pub fn validate_for(&self, volume: &Volume) -> Result<()> {
+        self.validate()?;
+        if self.method.is_physical() {
+            self.medium
+                .check_optical_depth(volume)
+                .map_err(Error::invalid)?;
+        }
+        Ok(())
+    }
+
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
             return Err(Error::invalid(format!(
@@ -538,7 +551,7 @@ impl<'v> Renderer<'v> {
         progress: &(dyn Fn(usize, usize) + Sync),
         cancel: &AtomicBool,
     ) -> Result<(Image, RenderStats)> {
-        params.validate()?;
+        params.validate_for(self.volume)?;
         if let Some(l) = &camera.look_at {
             l.validate().map_err(Error::invalid)?;
         }

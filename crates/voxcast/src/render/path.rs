@@ -58,13 +58,44 @@ impl<T> Clone for MediumCtx<'_, T> {
 }
 impl<T> Copy for MediumCtx<'_, T> {}
 
-/// Per-ray work counts.
-#[derive(Default)]
+/// Tentative collisions one path may take in all, its camera ray, bounces
+/// and shadow rays together. A path that needs more (an extinction far
+/// past [`super::medium::MAX_OPTICAL_DEPTH`]'s spirit, in a thin part of a
+/// block with a dense corner) ends there, as if absorbed, and is counted
+/// in [`RenderStats::capped_paths`]: a bound on time, not a hang.
+pub const MAX_PATH_COLLISIONS: u64 = 1 << 20;
+
+/// Per-tile work counts, and the current path's budget.
 pub(super) struct Work {
     /// Tentative collisions (majorant events).
     pub tentative: u64,
     /// Density lookups (trilinear interpolations).
     pub lookups: u64,
+    /// Tentative collisions the current path may still take.
+    pub budget: u64,
+    /// Paths ended by the budget.
+    pub capped: u64,
+}
+
+impl Default for Work {
+    fn default() -> Work {
+        Work {
+            tentative: 0,
+            lookups: 0,
+            budget: MAX_PATH_COLLISIONS,
+            capped: 0,
+        }
+    }
+}
+
+impl Work {
+    /// Charges `n` collisions to the path; true when its budget is spent.
+    #[inline(always)]
+    fn charge(&mut self, n: u64) -> bool {
+        self.tentative += n;
+        self.budget = self.budget.saturating_sub(n);
+        self.budget == 0
+    }
 }
 
 impl<T: Voxel> MediumCtx<'_, T> {
@@ -92,8 +123,16 @@ impl<T: Voxel> MediumCtx<'_, T> {
         let (ov, dv, a, b) = self.enter(o, d, f32::INFINITY)?;
         let mut hit = None;
         let mut tentative = 0;
-        self.majorant
-            .walk(ov, dv, a, b, rng, &mut tentative, |t, s_maj, rng| {
+        let budget = w.budget;
+        self.majorant.walk(
+            ov,
+            dv,
+            a,
+            b,
+            rng,
+            &mut tentative,
+            budget,
+            |t, s_maj, rng| {
                 let s = self.sigma_t(ov + dv * t, w);
                 if rng.uniform() * s_maj < s {
                     hit = Some(t);
@@ -101,8 +140,9 @@ impl<T: Voxel> MediumCtx<'_, T> {
                 } else {
                     false
                 }
-            });
-        w.tentative += tentative;
+            },
+        );
+        w.charge(tentative);
         hit
     }
 
@@ -117,8 +157,16 @@ impl<T: Voxel> MediumCtx<'_, T> {
         };
         let mut tr = 1.0f32;
         let mut tentative = 0;
-        self.majorant
-            .walk(ov, dv, a, b, rng, &mut tentative, |t, s_maj, rng| {
+        let budget = w.budget;
+        self.majorant.walk(
+            ov,
+            dv,
+            a,
+            b,
+            rng,
+            &mut tentative,
+            budget,
+            |t, s_maj, rng| {
                 let s = self.sigma_t(ov + dv * t, w);
                 tr *= 1.0 - s / s_maj;
                 if tr < 0.1 {
@@ -129,8 +177,12 @@ impl<T: Voxel> MediumCtx<'_, T> {
                     tr *= 2.0;
                 }
                 false
-            });
-        w.tentative += tentative;
+            },
+        );
+        if w.charge(tentative) {
+            // Out of budget: the rest of the segment is taken as opaque.
+            return 0.0;
+        }
         tr
     }
 }
@@ -158,8 +210,14 @@ impl<P: Phase> Integrator<'_, P> {
     ) -> Vec3 {
         let mut l = Vec3::ZERO;
         let mut beta = Vec3::ONE;
+        w.budget = MAX_PATH_COLLISIONS;
         for depth in 0..self.max_depth {
-            let Some(t) = m.delta_track(o, d, rng, w) else {
+            let track = m.delta_track(o, d, rng, w);
+            if w.budget == 0 {
+                w.capped += 1;
+                return l;
+            }
+            let Some(t) = track else {
                 // Left the medium: what the infinite lights send along d.
                 return l + beta * environment(self.lights, d);
             };
@@ -315,6 +373,7 @@ impl<T: Voxel> PhaseVisitor for WithGrid<'_, '_, T> {
             |work, stats| {
                 stats.samples = work.tentative;
                 stats.interpolations = work.lookups;
+                stats.capped_paths = work.capped;
             },
         )
     }

@@ -190,6 +190,7 @@ impl Phase for Mie {
 /// `{ type = "schlick", k = 0.9 }`, `{ type = "rayleigh" }`,
 /// `{ type = "mie", g = 0.85 }` (Cornette–Shanks).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
 #[serde(tag = "type", rename_all = "kebab-case")]
 pub enum PhaseFunction {
     #[default]

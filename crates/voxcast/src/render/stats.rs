@@ -18,8 +18,16 @@ pub struct RenderStats {
     pub gradient_interpolations: u64,
     /// Rays stopped by early ray termination.
     pub early_terminated: u64,
+    /// Paths of the physically based methods ended by their collision
+    /// budget (`render::path::MAX_PATH_COLLISIONS`); 0 in any sane scene.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub capped_paths: u64,
     /// Wall-clock seconds of the render.
     pub seconds: f64,
+}
+
+fn is_zero(n: &u64) -> bool {
+    *n == 0
 }
 
 impl RenderStats {
@@ -31,6 +39,7 @@ impl RenderStats {
         self.interpolations += o.interpolations;
         self.gradient_interpolations += o.gradient_interpolations;
         self.early_terminated += o.early_terminated;
+        self.capped_paths += o.capped_paths;
     }
 
     /// Samples per second of wall time.

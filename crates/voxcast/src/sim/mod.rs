@@ -14,7 +14,7 @@ pub use scenes::SmokeScene;
 pub use smoke::{Smoke, StepStats};
 
 use crate::error::{Error, Result};
-use crate::image::atomic_write;
+use crate::files::write_file;
 use crate::volume::SeriesWriter;
 use serde::Serialize;
 use std::path::Path;
@@ -77,12 +77,12 @@ pub fn simulate_smoke(
     };
     let mut writer = SeriesWriter::create(dir, Some(title), Some("s".into()))?;
     let text = scene.geometry_toml();
-    atomic_write(&dir.join(GEOMETRY), |f| {
+    write_file(&dir.join(GEOMETRY), |f| {
         use std::io::Write;
         f.write_all(text.as_bytes())
     })?;
     let text = scene.to_toml();
-    atomic_write(&dir.join(SCENE), |f| {
+    write_file(&dir.join(SCENE), |f| {
         use std::io::Write;
         f.write_all(
             b"# voxcast smoke scene: run again with `voxcast simulate smoke --scene THIS_FILE`\n",
@@ -119,7 +119,7 @@ pub fn simulate_smoke(
         if frame + 1 == frames || frame % 25 == 0 {
             let json = serde_json::to_string_pretty(&all)
                 .map_err(|e| Error::invalid(format!("cannot write {STATS}: {e}")))?;
-            atomic_write(&dir.join(STATS), |f| {
+            write_file(&dir.join(STATS), |f| {
                 use std::io::Write;
                 f.write_all(json.as_bytes())
             })?;

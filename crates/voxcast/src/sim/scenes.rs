@@ -14,6 +14,7 @@ use std::path::Path;
 
 /// A box in metres (an obstacle or an opening).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct BoxSpec {
     pub min: [f32; 3],
     pub max: [f32; 3],
@@ -27,6 +28,7 @@ pub struct BoxSpec {
 
 /// The fire: a sphere that adds smoke and heat every step.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct SourceSpec {
     /// Centre in metres.
     pub center: [f32; 3],
@@ -283,15 +285,7 @@ impl SmokeScene {
                 PRESETS.join(", ")
             )));
         }
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let scene: SmokeScene = toml::from_str(&text).map_err(|e| {
-            let field = e
-                .span()
-                .map(|s| text[..s.start.min(text.len())].lines().count().max(1))
-                .map(|l| format!("line {l}"))
-                .unwrap_or_else(|| "scene".into());
-            Error::format(path, field, e.message().to_string())
-        })?;
+        let scene: SmokeScene = crate::files::read_toml(path)?;
         scene
             .validate()
             .map_err(|(f, m)| Error::format(path, f, m))?;

@@ -19,7 +19,7 @@
 //! never has to fit in memory.
 
 use crate::error::{Error, Result};
-use crate::image::atomic_write;
+use crate::files::write_file;
 use crate::io::nrrd_write::{self, Encoding};
 use crate::io::OpenOptions;
 use crate::volume::Volume;
@@ -31,6 +31,7 @@ pub const MANIFEST: &str = "series.toml";
 
 /// The manifest of a frame folder.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Manifest {
     /// What the series shows (e.g. `smoke: office`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -45,6 +46,7 @@ pub struct Manifest {
 
 /// One frame of a manifest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct FrameEntry {
     /// The frame's volume file, relative to the folder.
     pub file: String,
@@ -92,9 +94,7 @@ impl Series {
     /// checked to exist, times must be finite and increasing.
     pub fn open_folder(dir: &Path) -> Result<Series> {
         let mpath = dir.join(MANIFEST);
-        let text = std::fs::read_to_string(&mpath).map_err(|e| Error::io(&mpath, e))?;
-        let m: Manifest = toml::from_str(&text)
-            .map_err(|e| Error::format(&mpath, "manifest", e.message().to_string()))?;
+        let m: Manifest = crate::files::read_toml(&mpath)?;
         if m.frames.is_empty() {
             return Err(Error::format(&mpath, "frame", "the series lists no frames"));
         }
@@ -346,11 +346,13 @@ impl SeriesWriter {
                     dir.display()
                 )));
             }
-            // Remove the old series' frames, so no stale frame is mixed in.
-            if let Ok(old) = Series::open_folder(dir) {
-                for i in 0..old.len() {
-                    if let Some(p) = old.frame_path(i) {
-                        let _ = std::fs::remove_file(p);
+            // Remove the old series' frames, so no stale frame is mixed in
+            // (the manifest is our own, not an input: read it as such).
+            if let Ok(old) = crate::files::read_own_toml::<Manifest>(&dir.join(MANIFEST)) {
+                for f in &old.frames {
+                    let rel = Path::new(&f.file);
+                    if rel.components().count() == 1 && !rel.is_absolute() {
+                        let _ = std::fs::remove_file(dir.join(rel));
                     }
                 }
             }
@@ -402,7 +404,7 @@ impl SeriesWriter {
     fn write_manifest(&self) -> Result<()> {
         let text = toml::to_string(&self.manifest)
             .map_err(|e| Error::invalid(format!("cannot write the manifest: {e}")))?;
-        atomic_write(&self.dir.join(MANIFEST), |f| {
+        write_file(&self.dir.join(MANIFEST), |f| {
             use std::io::Write;
             f.write_all(b"# voxcast frame series: render with `voxcast render DIR --time T`, animate with `voxcast animate DIR`\n")?;
             f.write_all(text.as_bytes())
