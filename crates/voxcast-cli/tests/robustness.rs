@@ -293,3 +293,29 @@ fn messages_quoting_a_file_are_escaped_and_cut() {
     let e = stderr(&o);
     assert_eq!(e.matches("os error 2").count(), 1, "{e}");
 }
+
+#[test]
+fn an_interrupted_render_leaves_no_output_and_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_voxcast"))
+        .args([
+            "render", "--method", "path", "--spp", "64", "--size", "2048x2048", "-o", "out.png",
+            "--stats-json", "s.json", "--save-scene", "s.toml", "-q",
+        ])
+        .current_dir(dir.path())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "the render ended before it could be interrupted"
+    );
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert!(!status.success());
+    assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+}
