@@ -11,6 +11,8 @@ pub mod bench_frames;
 pub mod builtin;
 pub mod camera;
 pub mod error;
+#[doc(hidden)]
+pub mod fuzz_support;
 pub mod geometry;
 pub mod image;
 pub mod io;
