@@ -12,6 +12,8 @@ pub mod builtin;
 pub mod camera;
 pub mod error;
 pub mod files;
+#[doc(hidden)]
+pub mod fuzz_support;
 pub mod geometry;
 pub mod image;
 pub mod io;
