@@ -299,8 +299,20 @@ fn an_interrupted_render_leaves_no_output_and_no_temporary_file() {
     let dir = tempfile::tempdir().unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_voxcast"))
         .args([
-            "render", "--method", "path", "--spp", "64", "--size", "2048x2048", "-o", "out.png",
-            "--stats-json", "s.json", "--save-scene", "s.toml", "-q",
+            "render",
+            "--method",
+            "path",
+            "--spp",
+            "64",
+            "--size",
+            "2048x2048",
+            "-o",
+            "out.png",
+            "--stats-json",
+            "s.json",
+            "--save-scene",
+            "s.toml",
+            "-q",
         ])
         .current_dir(dir.path())
         .spawn()

@@ -17,6 +17,10 @@ use std::path::Path;
 /// Largest opacity per unit length; 1 would mean infinite extinction.
 const MAX_ALPHA: f32 = 0.999_999;
 
+/// Most control points per channel: more than the lookup table has entries
+/// cannot change the picture, and each point costs every entry a look.
+pub const MAX_POINTS: usize = LUT_SIZE;
+
 /// A colour and opacity map over normalised values.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -193,11 +197,19 @@ impl TransferFunction {
         Ok(tf)
     }
 
-    /// Checks the control points: at least one of each, values finite and
-    /// non-decreasing, colours and opacities in 0…1, window lo < hi.
+    /// Checks the control points: at least one of each and at most
+    /// [`MAX_POINTS`], values finite and non-decreasing, colours and
+    /// opacities in 0…1, window lo < hi.
     pub fn validate(&self) -> std::result::Result<(), String> {
         if self.color.is_empty() || self.opacity.is_empty() {
             return Err("needs at least one `color` and one `opacity` point".into());
+        }
+        for (name, n) in [("color", self.color.len()), ("opacity", self.opacity.len())] {
+            if n > MAX_POINTS {
+                return Err(format!(
+                    "{n} `{name}` points: at most {MAX_POINTS} (the lookup table's resolution)"
+                ));
+            }
         }
         for (name, vals) in [
             (
@@ -470,6 +482,17 @@ impl Lut {
 
 #[cfg(test)]
 mod tests {
+
+    #[test]
+    fn more_points_than_the_lut_has_entries_are_refused() {
+        let mut tf = TransferFunction::preset("grayscale").unwrap();
+        let n = MAX_POINTS + 1;
+        tf.opacity = (0..n).map(|i| [i as f32 / n as f32, 0.5]).collect();
+        let e = tf.validate().unwrap_err();
+        assert!(e.contains("at most 4096"), "{e}");
+        tf.opacity.truncate(MAX_POINTS);
+        tf.validate().unwrap();
+    }
     use super::*;
 
     #[test]
