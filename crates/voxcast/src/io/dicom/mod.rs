@@ -451,11 +451,12 @@ pub fn read(path: &Path, opts: &super::OpenOptions) -> Result<Volume> {
     Ok(v)
 }
 
-/// Lines for `voxcast info`: the series found, their frames and transfer
-/// syntaxes, and the files skipped.
-pub fn summary(path: &Path) -> Result<Vec<String>> {
+/// Lines for `voxcast info`: the series found (the one read, by `choice`
+/// as for `--var`, marked), their frames and transfer syntaxes, and the
+/// files skipped.
+pub fn summary(path: &Path, choice: Option<&str>) -> Result<Vec<String>> {
     let s = scan(path)?;
-    let chosen = s.choose(None)?;
+    let chosen = s.choose(choice)?;
     let mut lines: Vec<String> = s
         .list()
         .into_iter()

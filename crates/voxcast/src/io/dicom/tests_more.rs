@@ -374,7 +374,7 @@ fn a_folder_with_strays_opens_the_series_and_lists_what_it_skipped() {
     let e = read_var(d, "1.2.3.nope").unwrap_err().to_string();
     assert!(e.contains("--var") && e.contains("1.2.3.99"), "{e}");
     // `voxcast info` lines: series, frames, transfer syntax, skipped files.
-    let lines = summary(d).unwrap().join("\n");
+    let lines = summary(d, None).unwrap().join("\n");
     assert!(
         lines.contains("4 frame(s) in 4 file(s)")
             && lines.contains("Explicit VR Little Endian")
@@ -589,7 +589,7 @@ fn multi_frame_file_with_per_frame_positions_reads_as_the_slices() {
             assert_eq!(v.value(i, j, k), single.value(i, j, 0), "({i},{j},{k})");
         }
     }
-    let lines = summary(&p).unwrap().join("\n");
+    let lines = summary(&p, None).unwrap().join("\n");
     assert!(lines.contains("3 frame(s) in 1 file(s)"), "{lines}");
 }
 
