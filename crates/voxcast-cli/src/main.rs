@@ -542,6 +542,18 @@ fn info(a: InfoArgs) -> Result<()> {
     } else {
         None
     };
+    // A DICOM folder or file: the series found, their frames and transfer
+    // syntaxes, and the files skipped.
+    let dicom = if voxcast::io::detect(Path::new(&a.input), &scene.input.options).ok()
+        == Some(voxcast::io::Format::Dicom)
+    {
+        Some(voxcast::io::dicom::summary(
+            Path::new(&a.input),
+            scene.input.options.variable.as_deref(),
+        )?)
+    } else {
+        None
+    };
     let s = *vol.stats();
     let hist = vol.histogram(256);
     let pct = [0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99].map(|q| (q, hist.quantile(q)));
@@ -569,6 +581,7 @@ fn info(a: InfoArgs) -> Result<()> {
             "active_voxels": vol.active_voxels,
             "fds": fds,
             "wrf": wrf,
+            "dicom": dicom,
             "time": vol.time,
         });
         println!("{}", serde_json::to_string_pretty(&j)?);
@@ -625,6 +638,12 @@ fn info(a: InfoArgs) -> Result<()> {
     }
     if let Some(lines) = &wrf {
         println!("  WRF output");
+        for l in lines {
+            println!("    {l}");
+        }
+    }
+    if let Some(lines) = &dicom {
+        println!("  DICOM series");
         for l in lines {
             println!("    {l}");
         }

@@ -313,3 +313,43 @@ fn render_takes_method_specs_and_the_shared_scene_flags() {
     assert!(err.contains("warp") && err.contains("threshold"), "{err}");
     assert!(!dir.path().join("w.png").exists());
 }
+
+#[test]
+fn info_on_a_dicom_folder_with_strays_lists_series_and_skipped_files() {
+    let Some(ct) = data("dicom_ct_lung") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for n in ["1-01.dcm", "1-02.dcm", "1-03.dcm"] {
+        std::fs::copy(Path::new(&ct).join(n), d.join(n)).unwrap();
+    }
+    // A truncated slice and a compressed slice of another series.
+    let b = std::fs::read(Path::new(&ct).join("1-04.dcm")).unwrap();
+    std::fs::write(d.join("bad.dcm"), &b[..674]).unwrap();
+    let rle =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../voxcast/tests/data/dicom_ts/mr_rle.dcm");
+    std::fs::copy(rle, d.join("mr_rle.dcm")).unwrap();
+    let o = voxcast(&["info", "."], d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("512 × 512 × 3"), "{out}");
+    assert!(
+        out.contains("DICOM series")
+            && out.contains("3 frame(s) in 3 file(s), Explicit VR Little Endian")
+            && out.contains("RLE Lossless (1.2.840.10008.1.2.5)")
+            && out.contains("skipped bad.dcm"),
+        "{out}"
+    );
+    assert!(
+        stderr(&o).contains("skipped 1 file(s): bad.dcm"),
+        "{}",
+        stderr(&o)
+    );
+    // --var 1 reads the RLE series.
+    let o = voxcast(&["info", ".", "--var", "1", "--json"], d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["dims"], serde_json::json!([48, 48, 1]));
+    assert!(j["dicom"][1].as_str().unwrap().ends_with("(read)"), "{j}");
+}

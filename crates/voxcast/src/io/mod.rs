@@ -112,7 +112,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::Vtk)
     } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
         Some(Format::Nifti)
-    } else if name.ends_with(".dcm") {
+    } else if name.ends_with(".dcm") || name.ends_with(".dcm.gz") {
         Some(Format::Dicom)
     } else if name.ends_with(".vdb") {
         Some(Format::Vdb)
@@ -171,7 +171,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::MetaImage => metaimage::read(path)?,
         Format::Vtk => vtk::read(path)?,
         Format::Nifti => nifti::read(path)?,
-        Format::Dicom => dicom::read(path)?,
+        Format::Dicom => dicom::read(path, opts)?,
         Format::ImageStack => image_stack::read(path)?,
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
         Format::Vdb => vdb::read(path, opts)?,

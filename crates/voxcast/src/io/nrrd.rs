@@ -8,11 +8,14 @@
 //!   u8, u16, i16 and f32 are kept as stored; signed 8-bit becomes i16
 //!   (exact); int32, uint32, int64, uint64 and double become f32, which is
 //!   exact only up to 2²⁴ in magnitude (doubles beyond f32's range become ±inf);
-//! * `dimension:` 3; 2 (one slice, z = 1); 4 when the first axis (a
-//!   one-component vector axis) or the last (a single time step) has size 1;
+//! * `dimension:` 3; 2 (one slice, z = 1); an axis of size 1 whose
+//!   `space directions:` entry is `none` or whose `kinds:` entry is not a
+//!   space kind is dropped wherever it is; without such marks a 4-D array
+//!   drops its first or last axis of size 1;
 //! * `sizes:`; spacing from `space directions:` (the length of each axis
 //!   vector; `none` for a non-spatial axis), else from `spacings:` (`nan`
-//!   means 1); `space origin:` → origin (z = 0 in a 2-D space);
+//!   on a space axis means 1, with a warning; negative or infinite is an
+//!   error); `space origin:` → origin (z = 0 in a 2-D space);
 //!   `sample units:` → [`Volume::units`];
 //! * `encoding:` `raw`, `gzip`/`gz`, `ascii`/`text`/`txt`; `endian:`
 //!   `little`/`big` (little when absent);
@@ -24,17 +27,18 @@
 //!   or a pattern `fmt min max step [subdim]` with one `%d`-style conversion.
 //!
 //! Not supported (an error naming the field): `type: block`; the `hex` and
-//! `bzip2` encodings; other dimensions and multi-component axes; a negative
+//! `bzip2` encodings (bzip2: convert with `unu save -e gzip`); other dimensions and multi-component axes; a negative
 //! byte skip with gzip or ascii. Orientation is reduced to one spacing per
 //! axis: rotations and axis flips in `space directions:` are not applied, the
-//! volume is placed axis-aligned at `space origin:`. Bytes after the data are
-//! ignored, as teem does.
+//! volume is placed axis-aligned at `space origin:`. Raw bytes after the
+//! data are ignored with a warning; gzip data longer than the header says is
+//! an error (a wrong header or another format's file, e.g. a `.nii.gz`).
 //!
 //! Element types, bounded reading and number parsing live in
 //! [`super::decode`], shared with the MetaImage and VTK readers.
 
 use super::decode::*;
-use super::util::{check_dims, file_len};
+use super::util::{check_dims, file_len, read_gzip_and_count_rest};
 use crate::error::{Error, Result};
 use crate::volume::{Volume, VoxelData};
 use glam::Vec3;
@@ -62,7 +66,13 @@ pub fn read(path: &Path) -> Result<Volume> {
             format!("{} sizes given for dimension {dimension}", sizes.len()),
         ));
     }
-    let spatial = spatial_axes(path, dimension, &sizes)?;
+    let spatial = spatial_axes(
+        path,
+        dimension,
+        &sizes,
+        header.get("space directions"),
+        header.get("kinds"),
+    )?;
     let axis_size = |axis: Option<&usize>| axis.and_then(|&a| sizes.get(a)).copied().unwrap_or(1);
     let dims = [
         axis_size(spatial.first()),
@@ -182,12 +192,15 @@ fn required_field<'h>(path: &Path, header: &'h Header, key: &'static str) -> Res
 fn read_header(path: &Path) -> Result<Header> {
     let mut lines = LineReader::open(path)?;
     let magic = lines.next_line("magic")?.unwrap_or_default();
-    if !magic.starts_with("NRRD") {
+    let version_ok = magic
+        .strip_prefix("NRRD000")
+        .is_some_and(|v| matches!(v.trim_end(), "1" | "2" | "3" | "4" | "5"));
+    if !version_ok {
         return Err(Error::format(
             path,
             "magic",
             format!(
-                "expected `NRRD000X` on the first line, found `{}`",
+                "expected `NRRD0001` … `NRRD0005` on the first line, found `{}`",
                 shorten(&magic)
             ),
         ));
@@ -313,7 +326,56 @@ fn parse_encoding(path: &Path, s: &str) -> Result<Encoding> {
 }
 
 /// The axes (indices into `sizes:`) that become x, y and z.
-fn spatial_axes(path: &Path, dimension: usize, sizes: &[u64]) -> Result<Vec<usize>> {
+/// The axes read as x, y, z. An axis whose `space directions:` entry is
+/// `none`, or whose `kinds:` entry is not a space kind, is not spatial (and
+/// must have size 1), wherever it is; without such marks a first or last
+/// axis of size 1 is dropped from a 4-D array.
+fn spatial_axes(
+    path: &Path,
+    dimension: usize,
+    sizes: &[u64],
+    directions: Option<&str>,
+    kinds: Option<&str>,
+) -> Result<Vec<usize>> {
+    let mut non_spatial = vec![false; dimension];
+    if let Some(d) = directions {
+        let v = parse_vectors(path, "space directions", d)?;
+        if v.len() == dimension {
+            for (n, e) in non_spatial.iter_mut().zip(&v) {
+                *n |= e.is_none();
+            }
+        }
+    }
+    if let Some(k) = kinds {
+        let k: Vec<String> = k
+            .split_whitespace()
+            .map(|w| w.to_ascii_lowercase())
+            .collect();
+        if k.len() == dimension {
+            for (n, w) in non_spatial.iter_mut().zip(&k) {
+                // teem's spatial kinds; `???`/`none` say nothing.
+                let spatial = matches!(w.as_str(), "domain" | "space" | "???" | "none");
+                *n |= !spatial;
+            }
+        }
+    }
+    if non_spatial.iter().any(|&n| n) {
+        for (a, &n) in non_spatial.iter().enumerate() {
+            if n && sizes.get(a) != Some(&1) {
+                return Err(Error::unsupported(
+                    path,
+                    format!(
+                        "axis {a} (size {}) is not a space axis (`none` direction or a non-space kind): only one-component non-space axes can be dropped",
+                        sizes.get(a).copied().unwrap_or(0)
+                    ),
+                ));
+            }
+        }
+        let axes: Vec<usize> = (0..dimension).filter(|&a| !non_spatial[a]).collect();
+        if (2..=3).contains(&axes.len()) {
+            return Ok(axes);
+        }
+    }
     match dimension {
         2 => Ok(vec![0, 1]),
         3 => Ok(vec![0, 1, 2]),
@@ -370,8 +432,19 @@ fn nrrd_spacing(
         }
         for (out, axis) in sp.iter_mut().zip(spatial) {
             match vals.get(*axis) {
-                Some(v) if !v.is_nan() => *out = v.abs(),
-                _ => {}
+                Some(v) if v.is_nan() => eprintln!(
+                    "warning: {}: field `spacings`: nan for axis {axis}: spacing 1 used",
+                    path.display()
+                ),
+                Some(v) if !(*v > 0.0 && v.is_finite()) => {
+                    return Err(Error::format(
+                        path,
+                        field,
+                        format!("{v} for axis {axis}: a spacing must be a positive finite number"),
+                    ))
+                }
+                Some(v) => *out = *v,
+                None => {}
             }
         }
         check_spacing(path, field, sp)
@@ -556,6 +629,14 @@ fn read_chunk(file: &Path, start: u64, count: usize, l: &Layout) -> Result<Voxel
             let offset = offset
                 .checked_add(skip)
                 .ok_or_else(|| Error::format(file, "byte skip", "offset overflows"))?;
+            let len = file_len(file)?;
+            let extra = len.saturating_sub(offset.saturating_add(n_bytes));
+            if extra > 0 && len >= offset.saturating_add(n_bytes) {
+                eprintln!(
+                    "warning: {}: field `sizes`: the file holds {extra} byte(s) after the {n_bytes} bytes the sizes and type describe; they are ignored (check the header, or say `byte skip: -1` if the data is at the end)",
+                    file.display()
+                );
+            }
             read_binary(file, offset, count, l.ty, l.big_endian, false, field)
         }
         (Encoding::Raw, None) => {
@@ -571,22 +652,29 @@ fn read_chunk(file: &Path, start: u64, count: usize, l: &Layout) -> Result<Voxel
                         file,
                         "byte skip",
                         format!(
-                            "byte skip {}: the file ({len} bytes) has no room for {n_bytes} bytes of data after byte {offset}",
+                            "byte skip {}: {n_bytes} bytes of data ending {back} byte(s) before the end of the file ({len} bytes) would start before byte {offset}, where the data may begin (wrong sizes/type, or not the right data file)",
                             l.byte_skip
                         ),
                     )
                 })?;
             read_binary(file, offset, count, l.ty, l.big_endian, false, field)
         }
-        (Encoding::Gzip, Some(0)) => {
-            read_binary(file, offset, count, l.ty, l.big_endian, true, field)
-        }
         (Encoding::Gzip, Some(skip)) => {
             // The byte skip of a compressed encoding counts decompressed bytes.
             let total = n_bytes
                 .checked_add(skip)
                 .ok_or_else(|| Error::format(file, "byte skip", "size overflows"))?;
-            let mut bytes = read_bytes(file, offset, total, true, field)?;
+            let (mut bytes, rest) = read_gzip_and_count_rest(file, offset, total, field)?;
+            if rest > 0 {
+                let more = if rest >= 1 << 20 { "at least " } else { "" };
+                return Err(Error::format(
+                    file,
+                    field,
+                    format!(
+                        "the gzip data holds {more}{rest} byte(s) more than the {total} that byte skip, sizes and type describe (a wrong header, or a data file of another format, e.g. a .nii.gz)"
+                    ),
+                ));
+            }
             let skip = usize::try_from(skip).ok().filter(|&s| s <= bytes.len());
             let Some(skip) = skip else {
                 return Err(Error::format(file, "byte skip", "larger than the data"));
@@ -607,6 +695,10 @@ fn read_chunk(file: &Path, start: u64, count: usize, l: &Layout) -> Result<Voxel
         )),
     }
 }
+
+#[cfg(test)]
+#[path = "nrrd_semantics_tests.rs"]
+mod semantics_tests;
 
 #[cfg(test)]
 mod tests {

@@ -90,6 +90,37 @@ pub fn read_payload(
     Ok(VoxelData::from_bytes(ty, &bytes, big_endian))
 }
 
+/// Reads `n_bytes` of gzip-compressed data starting at byte `offset` of
+/// `path` (same checks as [`read_payload`]) and counts the decompressed
+/// bytes that follow them, up to 1 MiB: a stream longer than the header
+/// says is a wrong header or the wrong file.
+pub fn read_gzip_and_count_rest(
+    path: &Path,
+    offset: u64,
+    n_bytes: u64,
+    field: &str,
+) -> Result<(Vec<u8>, u64)> {
+    let len = file_len(path)?;
+    let avail = len.saturating_sub(offset);
+    if offset > len || avail.saturating_mul(MAX_DEFLATE_RATIO) < n_bytes {
+        return Err(Error::format(
+            path,
+            field,
+            format!(
+                "the header describes {n_bytes} bytes of voxels but {avail} compressed bytes after byte {offset} cannot hold that many"
+            ),
+        ));
+    }
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    let mut dec = flate2::read::MultiGzDecoder::new(f);
+    let bytes = read_exact_or_short(&mut dec, n_bytes, path, field)?;
+    let rest = std::io::copy(&mut dec.take(1 << 20), &mut std::io::sink())
+        .map_err(|e| Error::format(path, field, format!("cannot decode the data: {e}")))?;
+    Ok((bytes, rest))
+}
+
 /// Reads exactly `n` bytes from `r`, growing the buffer only as data arrives
 /// (so a lying header cannot make us allocate what is not there).
 pub fn read_exact_or_short(r: impl Read, n: u64, path: &Path, field: &str) -> Result<Vec<u8>> {
