@@ -111,7 +111,7 @@ pub fn read_gzip_and_count_rest(
             ),
         ));
     }
-    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::files::open(path)?.0;
     std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
     let mut dec = flate2::read::MultiGzDecoder::new(f);
