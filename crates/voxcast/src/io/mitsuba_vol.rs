@@ -91,6 +91,17 @@ pub fn read(path: &Path) -> Result<Volume> {
             format!("min {lo} max {hi}: expected finite numbers with min ≤ max"),
         ));
     }
+    if let Some(a) = (0..3).find(|&a| hi[a] == lo[a] && res[a] > 1) {
+        return Err(Error::format(
+            path,
+            "bbox",
+            format!(
+                "min {lo} max {hi}: flat along {} although the resolution there is {}: the samples would have no spacing",
+                ["x", "y", "z"][a],
+                res[a]
+            ),
+        ));
+    }
     let dims = res.map(|r| r as u64);
     let (_, n_bytes) = check_dims(path, "resolution", dims, ScalarType::F32)?;
     let len = file_len(path)?;
@@ -191,6 +202,21 @@ mod tests {
             crate::io::open(&q, &Default::default()).unwrap().dims(),
             [4, 3, 2]
         );
+    }
+
+    #[test]
+    fn a_flat_bounding_box_is_refused_naming_bbox() {
+        let dir = tempfile::tempdir().unwrap();
+        let values = vec![0.0f32; 4 * 3 * 2];
+        // y is flat but has 3 samples.
+        let b = encode([4, 3, 2], [-1.0, 5.0, 2.0], [2.0, 5.0, 4.0], &values);
+        let p = write(dir.path(), "flat.vol", &b);
+        let s = err_naming(read(&p), "flat.vol", "bbox");
+        assert!(s.contains("flat along y"), "{s}");
+        // One sample on a flat axis is a single slice: read.
+        let b = encode([4, 3, 1], [-1.0, 0.0, 2.0], [2.0, 1.0, 2.0], &values[..12]);
+        let p = write(dir.path(), "slice.vol", &b);
+        assert_eq!(read(&p).unwrap().dims(), [4, 3, 1]);
     }
 
     #[test]

@@ -129,11 +129,19 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         return Ok(f);
     }
     let head = util::read_head(path, 352)?;
+    let nifti1_magic =
+        head.len() >= 348 && (&head[344..348] == b"n+1\0" || &head[344..348] == b"ni1\0");
+    if name.ends_with(".hdr") && nifti1_magic {
+        return Ok(Format::Nifti);
+    }
+    if let Some(advice) = not_read(&name) {
+        return Err(Error::unsupported(path, advice));
+    }
     if head.starts_with(b"NRRD") {
         Ok(Format::Nrrd)
     } else if head.starts_with(b"# vtk DataFile") {
         Ok(Format::Vtk)
-    } else if head.len() >= 348 && (&head[344..348] == b"n+1\0" || &head[344..348] == b"ni1\0") {
+    } else if nifti1_magic {
         Ok(Format::Nifti)
     } else if head.len() >= 132 && &head[128..132] == b"DICM" {
         Ok(Format::Dicom)
@@ -164,6 +172,20 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     }
 }
 
+/// Formats a user may expect that voxcast does not read, by file name: what
+/// to convert them with.
+fn not_read(name: &str) -> Option<&'static str> {
+    if name.ends_with(".mnc") || name.ends_with(".mnc2") {
+        Some("MINC (.mnc) is not read: convert it to NIfTI with `mnc2nii IN.mnc OUT.nii` (minc-tools) or nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.mnc OUT.nii.gz`)")
+    } else if name.ends_with(".mgh") || name.ends_with(".mgz") {
+        Some("FreeSurfer MGH/MGZ is not read: convert it with `mri_convert IN.mgz OUT.nii.gz` (FreeSurfer) or nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.mgz OUT.nii.gz`)")
+    } else if name.ends_with(".hdr") || name.ends_with(".img") {
+        Some("Analyze 7.5 (.hdr/.img without the NIfTI magic) is not read: convert it with nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.hdr OUT.nii.gz`) or `fslchfiletype NIFTI_GZ IN.hdr`")
+    } else {
+        None
+    }
+}
+
 /// Opens any supported input as a volume.
 pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
     let mut vol = match detect(path, opts)? {
@@ -189,4 +211,42 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         vol.set_spacing(Vec3::from(s))?;
     }
     Ok(vol)
+}
+
+#[cfg(test)]
+mod detect_tests {
+    use super::*;
+
+    #[test]
+    fn formats_not_read_are_named_with_a_converter() {
+        let dir = tempfile::tempdir().unwrap();
+        let opts = OpenOptions::default();
+        let mut hdf5 = b"\x89HDF\r\n\x1a\n".to_vec();
+        hdf5.resize(400, 0);
+        for (name, bytes, says) in [
+            ("brain.mnc", hdf5.clone(), ["MINC", "mnc2nii"]),
+            (
+                "brain.mgz",
+                vec![0x1f, 0x8b, 8, 0],
+                ["MGH/MGZ", "mri_convert"],
+            ),
+            ("brain.hdr", vec![0u8; 348], ["Analyze 7.5", "nibabel"]),
+        ] {
+            let p = dir.path().join(name);
+            std::fs::write(&p, &bytes).unwrap();
+            let e = detect(&p, &opts).unwrap_err();
+            let s = e.to_string();
+            assert!(matches!(e, Error::Unsupported { .. }), "{s}");
+            assert!(
+                s.contains(name) && says.iter().all(|w| s.contains(w)),
+                "{s}"
+            );
+        }
+        // A NIfTI-1 pair header (.hdr with the `ni1` magic) is NIfTI.
+        let mut h = vec![0u8; 348];
+        h[344..348].copy_from_slice(b"ni1\0");
+        let p = dir.path().join("pair.hdr");
+        std::fs::write(&p, &h).unwrap();
+        assert_eq!(detect(&p, &opts).unwrap(), Format::Nifti);
+    }
 }

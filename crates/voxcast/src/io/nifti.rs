@@ -133,7 +133,7 @@ fn read_header(path: &Path, stream: &mut dyn Read) -> Result<NiftiHeader> {
     if size_le == NIFTI2_HEADER_SIZE || size_be == NIFTI2_HEADER_SIZE {
         return Err(Error::unsupported(
             path,
-            "NIfTI-2 (540-byte header): only NIfTI-1 is read",
+            "NIfTI-2 (540-byte header): only NIfTI-1 is read; convert it with nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.nii OUT1.nii`)",
         ));
     }
     if size_le != HEADER_SIZE as i32 && size_be != HEADER_SIZE as i32 {

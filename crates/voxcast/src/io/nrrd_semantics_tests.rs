@@ -116,3 +116,29 @@ fn byte_skip_message_does_not_contradict_itself() {
         "{s}"
     );
 }
+
+/// `bytes(range(8))` compressed by Python's `bz2.compress` (libbzip2).
+const BZ2_0_TO_7: &[u8] = &[
+    66, 90, 104, 57, 49, 65, 89, 38, 83, 89, 181, 53, 35, 237, 0, 0, 0, 64, 0, 127, 128, 32, 0, 49,
+    12, 8, 25, 26, 105, 147, 53, 115, 249, 69, 220, 145, 78, 20, 36, 45, 77, 72, 251, 64,
+];
+
+#[test]
+fn bzip2_encoding_reads_and_checks_its_length() {
+    let dir = tempfile::tempdir().unwrap();
+    let h = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: bzip2\n";
+    let p = write(dir.path(), "b.nrrd", &attached(h, BZ2_0_TO_7));
+    let v = read(&p).unwrap();
+    assert_eq!(v.dims(), [2, 2, 2]);
+    assert_eq!(v.value(1, 0, 0), 1.0);
+    assert_eq!(v.value(1, 1, 1), 7.0);
+    // Fewer voxels than the stream holds: an error, as for gzip.
+    let h = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 1\nencoding: bz2\n";
+    let p = write(dir.path(), "short.nrrd", &attached(h, BZ2_0_TO_7));
+    let s = err_naming(read(&p), "short.nrrd", "sizes");
+    assert!(s.contains("4 byte(s) more"), "{s}");
+    // A truncated stream is an error, not a panic.
+    let h = "NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: bzip2\n";
+    let p = write(dir.path(), "cut.nrrd", &attached(h, &BZ2_0_TO_7[..20]));
+    err_naming(read(&p), "cut.nrrd", "sizes");
+}

@@ -121,6 +121,33 @@ pub fn read_gzip_and_count_rest(
     Ok((bytes, rest))
 }
 
+/// Reads `n_bytes` of bzip2-compressed data starting at byte `offset` of
+/// `path` and counts the decompressed bytes that follow them (up to 1 MiB).
+/// The buffer grows only as data arrives.
+pub fn read_bzip2_and_count_rest(
+    path: &Path,
+    offset: u64,
+    n_bytes: u64,
+    field: &str,
+) -> Result<(Vec<u8>, u64)> {
+    let len = file_len(path)?;
+    if offset > len {
+        return Err(Error::format(
+            path,
+            field,
+            format!("data should start at byte {offset} but the file has only {len} bytes"),
+        ));
+    }
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
+        .map_err(|e| Error::io(path, e))?;
+    let mut dec = bzip2::read::MultiBzDecoder::new(std::io::BufReader::new(f));
+    let bytes = read_exact_or_short(&mut dec, n_bytes, path, field)?;
+    let rest = std::io::copy(&mut dec.take(1 << 20), &mut std::io::sink())
+        .map_err(|e| Error::format(path, field, format!("cannot decode the data: {e}")))?;
+    Ok((bytes, rest))
+}
+
 /// Reads exactly `n` bytes from `r`, growing the buffer only as data arrives
 /// (so a lying header cannot make us allocate what is not there).
 pub fn read_exact_or_short(r: impl Read, n: u64, path: &Path, field: &str) -> Result<Vec<u8>> {
