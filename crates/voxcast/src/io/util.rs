@@ -138,7 +138,7 @@ pub fn read_bzip2_and_count_rest(
             format!("data should start at byte {offset} but the file has only {len} bytes"),
         ));
     }
-    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut f = crate::files::open(path)?.0;
     std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
     let mut dec = bzip2::read::MultiBzDecoder::new(std::io::BufReader::new(f));
