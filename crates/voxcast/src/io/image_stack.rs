@@ -25,7 +25,7 @@
 //! All slices must have the same width, height and type. Not supported:
 //! bilevel (1-bit) TIFF, palette/CMYK/YCbCr TIFF, other image formats.
 
-use super::util::{check_dims, file_len, natural_cmp, read_head, MAX_DEFLATE_RATIO};
+use super::util::{check_dims, file_len, natural_cmp, no_panic, read_head, MAX_DEFLATE_RATIO};
 use crate::error::{Error, Result};
 use crate::volume::{ScalarType, Volume, VoxelData};
 use glam::Vec3;
@@ -232,7 +232,7 @@ fn probe(path: &Path) -> Result<Source> {
     };
     let pages = match format {
         Format::Png => vec![probe_png(path)?],
-        Format::Tiff => probe_tiff(path)?,
+        Format::Tiff => no_panic(path, "TIFF", || probe_tiff(path))?,
     };
     Ok(Source {
         path: path.to_path_buf(),
@@ -444,7 +444,7 @@ fn decode_all<T: Voxel>(sources: &[Source], n: usize, plane: usize) -> Result<Ve
         .into_par_iter()
         .map(|(s, chunk)| match s.format {
             Format::Png => decode_png(&s.path, chunk),
-            Format::Tiff => decode_tiff(s, chunk, plane),
+            Format::Tiff => no_panic(&s.path, "TIFF", || decode_tiff(s, chunk, plane)),
         })
         .collect();
     // Report the first failing file in slice order, whatever thread failed first.

@@ -168,6 +168,20 @@ pub fn read_exact_or_short(r: impl Read, n: u64, path: &Path, field: &str) -> Re
     Ok(buf)
 }
 
+/// Runs a third-party decoder on a user's file, turning a panic inside it
+/// (a bug of that crate on malformed input, e.g. the `tiff` crate indexing
+/// an empty strip table) into an error naming the file: user files are
+/// untrusted input and must not take the program down.
+pub fn no_panic<T>(path: &Path, what: &str, f: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|_| {
+        Err(Error::format(
+            path,
+            what,
+            format!("the {what} decoder failed on this file (malformed or unsupported data)"),
+        ))
+    })
+}
+
 /// Parses exactly `N` whitespace- or comma-separated numbers.
 pub fn parse_numbers<T: std::str::FromStr, const N: usize>(
     path: &Path,
