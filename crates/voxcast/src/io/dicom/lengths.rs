@@ -324,6 +324,21 @@ impl<R: Read + Seek> Walker<'_, R> {
                 (None, self.u32(nb))
             };
             let is_pixel_data = (g, e) == (0x7FE0, 0x0010);
+            if let Some(size) = vr.as_ref().and_then(fixed_size) {
+                // A binary number whose length is not a multiple of its size
+                // throws the parser off the element boundaries (found by
+                // fuzzing: it then reads a bogus length and allocates it).
+                if n != UNDEFINED && n % size != 0 {
+                    return Err(Error::format(
+                        self.path,
+                        format!("({g:04X},{e:04X})"),
+                        format!(
+                            "a {} value of {n} bytes: must be a multiple of {size}",
+                            String::from_utf8_lossy(vr.as_ref().expect("some"))
+                        ),
+                    ));
+                }
+            }
             if n == UNDEFINED {
                 match vr.as_ref() {
                     _ if is_pixel_data => {
@@ -374,5 +389,15 @@ impl<R: Read + Seek> Walker<'_, R> {
             }
             self.skip(n as u64)?;
         }
+    }
+}
+
+/// Bytes per value of the binary-number VRs.
+fn fixed_size(vr: &[u8; 2]) -> Option<u32> {
+    match vr {
+        b"SS" | b"US" => Some(2),
+        b"SL" | b"UL" | b"FL" | b"AT" => Some(4),
+        b"FD" | b"SV" | b"UV" => Some(8),
+        _ => None,
     }
 }
