@@ -79,9 +79,7 @@ pub fn read_payload(
             ),
         ));
     }
-    let mut f = crate::files::open(path)?.0;
-    std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
-        .map_err(|e| Error::io(path, e))?;
+    let f = open_at(path, offset)?;
     let bytes = if gzip {
         read_exact_or_short(flate2::read::MultiGzDecoder::new(f), n_bytes, path, field)?
     } else {
@@ -111,14 +109,9 @@ pub fn read_gzip_and_count_rest(
             ),
         ));
     }
-    let mut f = crate::files::open(path)?.0;
-    std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
-        .map_err(|e| Error::io(path, e))?;
-    let mut dec = flate2::read::MultiGzDecoder::new(f);
-    let bytes = read_exact_or_short(&mut dec, n_bytes, path, field)?;
-    let rest = std::io::copy(&mut dec.take(1 << 20), &mut std::io::sink())
-        .map_err(|e| Error::format(path, field, format!("cannot decode the data: {e}")))?;
-    Ok((bytes, rest))
+    let f = open_at(path, offset)?;
+    let dec = flate2::read::MultiGzDecoder::new(f);
+    read_and_count_rest(dec, n_bytes, path, field)
 }
 
 /// Reads `n_bytes` of bzip2-compressed data starting at byte `offset` of
@@ -138,11 +131,28 @@ pub fn read_bzip2_and_count_rest(
             format!("data should start at byte {offset} but the file has only {len} bytes"),
         ));
     }
+    let f = open_at(path, offset)?;
+    let dec = bzip2::read::MultiBzDecoder::new(std::io::BufReader::new(f));
+    read_and_count_rest(dec, n_bytes, path, field)
+}
+
+/// `path` opened as an input and positioned at byte `offset`.
+fn open_at(path: &Path, offset: u64) -> Result<std::fs::File> {
     let mut f = crate::files::open(path)?.0;
     std::io::Seek::seek(&mut f, std::io::SeekFrom::Start(offset))
         .map_err(|e| Error::io(path, e))?;
-    let mut dec = bzip2::read::MultiBzDecoder::new(std::io::BufReader::new(f));
-    let bytes = read_exact_or_short(&mut dec, n_bytes, path, field)?;
+    Ok(f)
+}
+
+/// Reads `n` bytes from the decoder `dec`, then counts the decoded bytes
+/// that follow them, up to 1 MiB.
+fn read_and_count_rest(
+    mut dec: impl Read,
+    n: u64,
+    path: &Path,
+    field: &str,
+) -> Result<(Vec<u8>, u64)> {
+    let bytes = read_exact_or_short(&mut dec, n, path, field)?;
     let rest = std::io::copy(&mut dec.take(1 << 20), &mut std::io::sink())
         .map_err(|e| Error::format(path, field, format!("cannot decode the data: {e}")))?;
     Ok((bytes, rest))
