@@ -27,8 +27,7 @@
 
 use super::march::{intersect_box, BlockWalker};
 use super::octree::Octree;
-use super::optics::Optics;
-use super::ray::{evaluate, Acc, Counters, Pending, RayCtx};
+use super::ray::{flush, Composite, Counters, Frame, Marcher, Pending, Sampler, Segment};
 use crate::error::{Error, Result};
 use crate::transfer::{Lut, LUT_SIZE};
 use crate::volume::Voxel;
@@ -166,88 +165,84 @@ impl<'a> LodRay<'a> {
     }
 }
 
-/// Marches one ray through the octree (see the module's doc). True when
-/// the ray terminated early.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-pub(super) fn march_lod<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, T>,
-    lod: &LodRay<'_>,
-    o: Vec3,
-    d: Vec3,
-    view: Vec3,
-    t0: f32,
-    t_in: f32,
-    t_out: f32,
-    acc: &mut Acc<'_>,
-    n: &mut Counters,
-) -> bool {
-    let counts = lod.tree.levels[0].counts;
-    let leaf = lod.tree.leaf;
-    let inv_d = Vec3::ONE / d;
-    let mut pending: Option<Pending> = None;
-    // Composites the pending sample over the stretch up to `t_next`
-    // (opacity correction for the actual length).
-    let flush = |p: Pending, t_next: f32, acc: &mut Acc<'_>| -> bool {
-        let ds = t_next - p.t;
-        let alpha = 1.0 - (-ctx.lut.sigma(p.entry) * ds / ctx.unit).exp();
-        alpha > 0.0 && acc.add::<O>(p.rgb, alpha)
-    };
-    let mut walker = BlockWalker::new(o, d, t_in, t_out, leaf, counts);
-    let mut last_jump = t_in;
-    while let Some((ta, tb, b)) = walker.next() {
-        let empty = lod.empty[0][b];
-        let c = if empty { 2 } else { lod.class(b, acc.a) };
-        let sk = lod.steps[c];
-        // Samples at t₀ + m·k·step: the uniform grid decimated by k.
-        let m0 = ((ta - t0) / sk).ceil().max(0.0);
-        let mut t_end = tb;
-        let mut jump = false;
-        if empty && ctx.skip_empty {
-            if let Some(te) = lod.empty_exit(b, o, inv_d) {
-                if te > tb && te > last_jump {
-                    t_end = te.min(t_out);
-                    jump = true;
-                }
-            }
-        }
-        let m1 = ((t_end - t0) / sk).ceil().max(0.0);
-        if m1 > m0 {
-            // The pending sample's stretch ends at this node's first sample,
-            // whether or not the node is skipped: skipping changes no pixel.
-            if let Some(p) = pending.take() {
-                if flush(p, t0 + m0 * sk, acc) {
-                    return true;
-                }
-            }
-            if !(empty && ctx.skip_empty) {
-                let (m0, m1) = (m0 as u32, m1 as u32);
-                let alphas = &lod.alphas[c];
-                for m in m0..m1 {
-                    let t = t0 + m as f32 * sk;
-                    n.samples += 1;
-                    let Some((i, rgb)) = evaluate(ctx, o + d * t, view, n) else {
-                        continue;
-                    };
-                    if m + 1 < m1 {
-                        let alpha = alphas[i];
-                        if alpha > 0.0 && acc.add::<O>(rgb, alpha) {
-                            return true;
-                        }
-                    } else {
-                        pending = Some(Pending { t, entry: i, rgb });
+/// Marches one ray through the octree (see the module's doc).
+impl<T: Voxel> Marcher<T> for LodRay<'_> {
+    #[inline(always)]
+    fn march<S: Sampler<T>, C: Composite>(
+        &self,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        smp: &mut S,
+        acc: &mut C,
+        n: &mut Counters,
+    ) -> bool {
+        let lod = self;
+        let (o, d, t0, t_out) = (seg.o, seg.d, seg.t0, seg.t_out);
+        let counts = lod.tree.levels[0].counts;
+        let leaf = lod.tree.leaf;
+        let inv_d = Vec3::ONE / d;
+        let mut pending: Option<Pending> = None;
+        let mut walker = BlockWalker::new(o, d, seg.t_in, t_out, leaf, counts);
+        let mut last_jump = seg.t_in;
+        while let Some((ta, tb, b)) = walker.next() {
+            let empty = lod.empty[0][b];
+            let c = if empty {
+                2
+            } else {
+                lod.class(b, acc.opacity())
+            };
+            let sk = lod.steps[c];
+            // Samples at t₀ + m·k·step: the uniform grid decimated by k.
+            let m0 = ((ta - t0) / sk).ceil().max(0.0);
+            let mut t_end = tb;
+            let mut jump = false;
+            if empty && f.skip_empty {
+                if let Some(te) = lod.empty_exit(b, o, inv_d) {
+                    if te > tb && te > last_jump {
+                        t_end = te.min(t_out);
+                        jump = true;
                     }
                 }
             }
+            let m1 = ((t_end - t0) / sk).ceil().max(0.0);
+            if m1 > m0 {
+                // The pending sample's stretch ends at this node's first
+                // sample, whether or not the node is skipped: skipping
+                // changes no pixel.
+                if let Some(p) = pending.take() {
+                    if flush(f, p, t0 + m0 * sk, acc) {
+                        return true;
+                    }
+                }
+                if !(empty && f.skip_empty) {
+                    let (m0, m1) = (m0 as u32, m1 as u32);
+                    let alphas = &lod.alphas[c];
+                    for m in m0..m1 {
+                        let t = t0 + m as f32 * sk;
+                        n.samples += 1;
+                        let Some((i, rgb)) = smp.at(f, o + d * t, t, m, seg.view, n).hit else {
+                            continue;
+                        };
+                        if m + 1 < m1 {
+                            let alpha = alphas[i];
+                            if alpha > 0.0 && acc.add(rgb, alpha) {
+                                return true;
+                            }
+                        } else {
+                            pending = Some(Pending { t, entry: i, rgb });
+                        }
+                    }
+                }
+            }
+            if jump {
+                // Skip the whole empty subtree.
+                last_jump = t_end;
+                walker = BlockWalker::new(o, d, t_end, t_out, leaf, counts);
+            }
         }
-        if jump {
-            // Skip the whole empty subtree.
-            last_jump = t_end;
-            walker = BlockWalker::new(o, d, t_end, t_out, leaf, counts);
+        if let Some(p) = pending {
+            return flush(f, p, t_out.max(p.t), acc);
         }
+        false
     }
-    if let Some(p) = pending {
-        return flush(p, t_out.max(p.t), acc);
-    }
-    false
 }

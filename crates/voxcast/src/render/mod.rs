@@ -4,6 +4,7 @@
 //! dispatch, no allocation and no locks.
 
 pub mod blocks;
+mod composite;
 pub mod light;
 pub mod lod;
 pub mod majorant;
@@ -15,11 +16,13 @@ mod path;
 pub mod phase;
 mod ray;
 pub mod rng;
+mod sample;
 pub mod shading;
 pub mod stats;
 mod stochastic;
 mod surface;
 mod tiles;
+mod trace;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
@@ -30,15 +33,18 @@ use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
 use crate::volume::{Grid, GridVisitor, Volume, Voxel};
+use composite::{BackToFront, FrontToBack, Weights};
 use glam::Vec3;
 pub use march::{AdaptiveParams, ThresholdParams};
-use optics::{AbsorptionOnly, EmissionAbsorption, EmissionOnly, Optics};
-use ray::RayCtx;
+use march::{BlockMax, Fixed, Midpoint, Steps, Threshold};
+use ray::{Frame, Marcher, Sampler};
+use sample::{Flat, Grouped, Phong, Shade, Trilinear};
 use serde::{Deserialize, Serialize};
 use shading::BlinnPhong;
 use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use std::time::Instant;
+use trace::Tracer;
 
 /// Where samples go along the ray (DESIGN.md axis 1).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -661,46 +667,41 @@ struct Job<'a> {
 impl GridVisitor for Job<'_> {
     type Output = Option<(Image, RenderStats)>;
     fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Self::Output {
-        match self.params.optical {
-            OpticalModel::AbsorptionOnly => self.run::<T, AbsorptionOnly>(grid),
-            OpticalModel::EmissionOnly => self.run::<T, EmissionOnly>(grid),
-            OpticalModel::EmissionAbsorption => self.run::<T, EmissionAbsorption>(grid),
+        self.run(grid)
+    }
+}
+
+/// The tables a render derives from the transfer function for its marcher.
+struct Tables {
+    /// Adaptive levels `level_lo..=level_hi`: step (world) and opacities.
+    level_lo: i32,
+    level_hi: i32,
+    level_steps: Vec<f32>,
+    level_alphas: Vec<Box<[f32; crate::transfer::LUT_SIZE]>>,
+}
+
+impl Tables {
+    /// A step-per-block marcher with level rule `rule` over these tables.
+    fn steps<L>(&self, rule: L, k_ref: f32) -> Steps<'_, L> {
+        Steps {
+            rule,
+            level_lo: self.level_lo,
+            level_hi: self.level_hi,
+            k_ref,
+            level_steps: &self.level_steps,
+            level_alphas: &self.level_alphas,
         }
     }
 }
 
 impl Job<'_> {
-    fn run<T: Voxel, O: Optics>(&self, grid: &Grid<'_, T>) -> Option<(Image, RenderStats)> {
-        let (w, h) = (self.params.width, self.params.height);
-        let (box_lo, box_hi) = self.volume.sample_box();
+    /// Picks the ray loop's three choices once per render — compositor,
+    /// shading, marcher, reconstruction, in that order — and runs the one
+    /// monomorphised loop they make.
+    fn run<T: Voxel>(&self, grid: &Grid<'_, T>) -> Option<(Image, RenderStats)> {
         let p = self.params;
-        let (level_lo, level_hi) = p.adaptive.levels(p.step);
-        let levels: Vec<f32> = (level_lo..=level_hi)
-            .map(|j| p.step * 2f32.powi(j))
-            .collect();
-        let level_alphas: Vec<_> = levels.iter().map(|&r| self.lut.alphas(r)).collect();
-        let threshold_alphas: Vec<_> = p
-            .threshold
-            .steps
-            .iter()
-            .map(|&r| self.lut.alphas(r))
-            .collect();
-        // `importance`: the spacing and step opacities of its pdf's levels.
-        let (importance_steps, importance_alphas): (Vec<f32>, Vec<_>) =
-            if p.method == Method::Importance {
-                (0..=stochastic::MAX_LEVEL)
-                    .map(|j| {
-                        let r = p.step * (1u32 << j) as f32;
-                        (r * self.unit, self.lut.alphas(r))
-                    })
-                    .unzip()
-            } else {
-                (Vec::new(), Vec::new())
-            };
-        let lod_ray = self
-            .tree
-            .map(|t| lod::LodRay::new(t, &self.empty, &self.lut, &p.lod, p.step, self.unit));
-        let ctx = RayCtx {
+        let (box_lo, box_hi) = self.volume.sample_box();
+        let frame = Frame {
             grid,
             lut: &self.lut,
             box_lo,
@@ -709,12 +710,6 @@ impl Job<'_> {
             inv_spacing: Vec3::ONE / self.volume.spacing(),
             step: p.step * self.unit,
             unit: self.unit,
-            ert: p.ert,
-            back_to_front: p.order == Order::BackToFront,
-            shading: p.shading.then(BlinnPhong::default),
-            method: p.method,
-            grouped: p.grouped,
-            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
             skip_empty: p.skip_empty,
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
@@ -722,22 +717,128 @@ impl Job<'_> {
             occupied: p
                 .skip_empty
                 .then(|| self.blocks.occupied_box(&self.empty, box_lo, box_hi)),
-            max_gradient: self.max_gradient,
+            seed: p.seed,
+        };
+        match p.order {
+            Order::FrontToBack => self.shaded::<T, FrontToBack>(&frame),
+            Order::BackToFront => self.shaded::<T, BackToFront>(&frame),
+        }
+    }
+
+    fn shaded<T: Voxel, C: composite::Order>(
+        &self,
+        f: &Frame<'_, T>,
+    ) -> Option<(Image, RenderStats)> {
+        if self.params.shading {
+            self.marched::<T, C, Phong>(f, Phong(BlinnPhong::default()))
+        } else {
+            self.marched::<T, C, Flat>(f, Flat)
+        }
+    }
+
+    fn marched<T: Voxel, C: composite::Order, Sh: Shade>(
+        &self,
+        f: &Frame<'_, T>,
+        sh: Sh,
+    ) -> Option<(Image, RenderStats)> {
+        let p = self.params;
+        let (level_lo, level_hi) = match p.method {
+            Method::Adaptive | Method::AdaptiveMax => p.adaptive.levels(p.step),
+            _ => (0, 0),
+        };
+        let levels: Vec<f32> = (level_lo..=level_hi)
+            .map(|j| p.step * 2f32.powi(j))
+            .collect();
+        let t = Tables {
             level_lo,
             level_hi,
-            k_ref: p.adaptive.k_ref,
-            level_steps: &levels.iter().map(|s| s * self.unit).collect::<Vec<_>>(),
-            level_alphas: &level_alphas,
-            threshold: p.threshold,
-            threshold_steps: p.threshold.steps.map(|s| s * self.unit),
-            threshold_alphas: &threshold_alphas,
+            level_steps: levels.iter().map(|s| s * self.unit).collect(),
+            level_alphas: levels.iter().map(|&r| self.lut.alphas(r)).collect(),
+        };
+        let k = p.adaptive.k_ref;
+        match p.method {
+            Method::Uniform | Method::Jitter => {
+                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k))
+            }
+            Method::Adaptive => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Midpoint, k)),
+            Method::AdaptiveMax => {
+                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(BlockMax(self.max_gradient), k))
+            }
+            Method::Threshold => {
+                let alphas: Vec<_> = p
+                    .threshold
+                    .steps
+                    .iter()
+                    .map(|&r| self.lut.alphas(r))
+                    .collect();
+                let m = Threshold {
+                    params: p.threshold,
+                    steps: p.threshold.steps.map(|s| s * self.unit),
+                    alphas: &alphas,
+                };
+                self.grouped::<T, C, Sh, _>(f, sh, &m)
+            }
+            Method::Stratified => {
+                let m = stochastic::Stratified {
+                    full_alphas: &t.level_alphas[0],
+                };
+                self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
+            }
+            Method::Mc => self.tiles::<T, C, _, _>(f, &stochastic::UniformMc, Trilinear(sh)),
+            Method::Importance => {
+                // The spacing and step opacities of its pdf's levels.
+                let (steps, alphas): (Vec<f32>, Vec<_>) = (0..=stochastic::MAX_LEVEL)
+                    .map(|j| {
+                        let r = p.step * (1u32 << j) as f32;
+                        (r * self.unit, self.lut.alphas(r))
+                    })
+                    .unzip();
+                let m = stochastic::Importance {
+                    pdf: self.pdf,
+                    steps: &steps,
+                    alphas: &alphas,
+                };
+                self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
+            }
+            Method::Lod => {
+                let tree = self.tree.expect("the octree is built for lod");
+                let m = lod::LodRay::new(tree, &self.empty, &self.lut, &p.lod, p.step, self.unit);
+                self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
+            }
+            // Rendered by `path::render` before a Job is made.
+            Method::SingleScatter | Method::Path => None,
+        }
+    }
+
+    /// S0's grouped interpolation, for the marchers it applies to.
+    fn grouped<T: Voxel, C: composite::Order, Sh: Shade, M: Marcher<T>>(
+        &self,
+        f: &Frame<'_, T>,
+        sh: Sh,
+        m: &M,
+    ) -> Option<(Image, RenderStats)> {
+        if self.params.grouped {
+            self.tiles::<T, C, _, _>(f, m, Grouped::new(sh))
+        } else {
+            self.tiles::<T, C, _, _>(f, m, Trilinear(sh))
+        }
+    }
+
+    /// Renders the tiles with one monomorphised ray loop.
+    fn tiles<T: Voxel, C: composite::Order, M: Marcher<T>, S: Sampler<T>>(
+        &self,
+        f: &Frame<'_, T>,
+        m: &M,
+        sampler: S,
+    ) -> Option<(Image, RenderStats)> {
+        let p = self.params;
+        let tr = Tracer {
+            marcher: m,
+            sampler,
+            weights: Weights::of(p.optical),
+            ert: p.ert,
+            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
             surface: self.surface,
-            seed: p.seed,
-            pass: 0,
-            pdf: self.pdf,
-            importance_steps: &importance_steps,
-            importance_alphas: &importance_alphas,
-            lod: lod_ray.as_ref(),
         };
         // Deterministic methods give the same image every pass.
         let passes = if p.method.is_stochastic() || p.jitter {
@@ -745,10 +846,10 @@ impl Job<'_> {
         } else {
             1
         };
-        let bg = Vec3::from(self.params.background.map(srgb_to_linear));
+        let bg = Vec3::from(p.background.map(srgb_to_linear));
         tiles::render_tiles(
-            w,
-            h,
+            p.width,
+            p.height,
             self.progress,
             self.cancel,
             Vec::<(Vec3, f32)>::new,
@@ -756,9 +857,7 @@ impl Job<'_> {
                 let (o, d) = self.cam.ray(x, y);
                 let mut c = glam::Vec4::ZERO;
                 for pass in 0..passes {
-                    let mut ctx = ctx;
-                    ctx.pass = pass;
-                    c += ray::trace::<T, O>(&ctx, o, d, (x, y), stats, scratch);
+                    c += trace::trace::<T, M, S, C>(f, &tr, (o, d), (x, y), pass, stats, scratch);
                 }
                 // Progressive average of premultiplied colour (linear).
                 let c = c / passes as f32;

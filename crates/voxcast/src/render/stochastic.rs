@@ -31,12 +31,10 @@
 //! so there is no buffer and no sort.
 
 use super::march::BlockWalker;
-use super::optics::Optics;
-use super::ray::{evaluate, Acc, Counters, RayCtx};
+use super::ray::{Composite, Counters, Frame, Marcher, Sampler, Segment};
 use super::rng::{splitmix, Rng};
-use super::Method;
+use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
-use glam::Vec3;
 
 /// `n` uniform numbers in [0, 1), produced in ascending order.
 struct SortedUniforms {
@@ -75,168 +73,153 @@ fn interval_random(key: u64, k: u64) -> f32 {
     (splitmix(key ^ k.wrapping_mul(0xD6E8_FEB8_6659_FD93)) >> 40) as f32 / (1u64 << 24) as f32
 }
 
-/// Whether voxel-space point `p` lies in a block that is empty under the TF.
+/// The pixel's random stream for this pass.
 #[inline(always)]
-fn in_empty_block<T>(ctx: &RayCtx<'_, T>, p: Vec3) -> bool {
-    let b = ctx.block_size as f32;
-    let c = ctx.block_counts;
-    let ix = ((p.x / b) as usize).min(c[0] - 1);
-    let iy = ((p.y / b) as usize).min(c[1] - 1);
-    let iz = ((p.z / b) as usize).min(c[2] - 1);
-    ctx.empty[ix + c[0] * (iy + c[1] * iz)]
+fn rng<T>(f: &Frame<'_, T>, seg: &Segment) -> Rng {
+    Rng::for_pixel(f.seed, seg.pixel.0, seg.pixel.1, seg.pass)
 }
 
-/// Runs the stochastic marcher of `ctx.method` on `[t_in, t_out]`, walking
-/// the blocks of `walk` (the part of it outside which every block is empty);
-/// true when the ray was terminated early.
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-pub(super) fn march<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, T>,
-    o: Vec3,
-    d: Vec3,
-    view: Vec3,
-    t_in: f32,
-    t_out: f32,
-    walk: (f32, f32),
-    pixel: (u32, u32),
-    acc: &mut Acc<'_>,
-    n: &mut Counters,
-) -> bool {
-    let rng = || Rng::for_pixel(ctx.seed, pixel.0, pixel.1, ctx.pass);
-    match ctx.method {
-        Method::Stratified => stratified::<T, O>(ctx, o, d, view, t_in, t_out, walk, rng(), acc, n),
-        Method::Mc => uniform_mc::<T, O>(ctx, o, d, view, t_in, t_out, rng(), acc, n),
-        _ => {
-            // One offset per ray; the passes follow the pixel's rotated
-            // golden-ratio sequence, as `jitter`'s do.
-            let xi = super::rng::pixel_sequence(ctx.seed, pixel.0, pixel.1, ctx.pass);
-            importance::<T, O>(ctx, o, d, view, walk, xi, acc, n)
+/// `stratified`: one uniform position in each step interval. Holds the
+/// opacities of a full step.
+pub(super) struct Stratified<'a> {
+    pub full_alphas: &'a [f32; LUT_SIZE],
+}
+
+impl<T: Voxel> Marcher<T> for Stratified<'_> {
+    #[inline(always)]
+    fn march<S: Sampler<T>, C: Composite>(
+        &self,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        smp: &mut S,
+        c: &mut C,
+        n: &mut Counters,
+    ) -> bool {
+        let (t_in, t_out) = (seg.t_in, seg.t_out);
+        let s = f.step;
+        let mut rng = rng(f, seg);
+        let key = rng.next_u32() as u64 | (rng.next_u32() as u64) << 32;
+        let last = ((t_out - t_in) / s).ceil().max(1.0) as u64 - 1;
+        // Interval k's sample position and the length it stands for (the
+        // last interval is cut at t_out).
+        let pos = |k: u64| {
+            let a = t_in + k as f32 * s;
+            let len = if k == last { t_out - a } else { s };
+            (a + interval_random(key, k) * len, len)
+        };
+        // A sample belongs to the stretch its position lies in, so skipping
+        // an empty stretch drops exactly the samples that contribute nothing.
+        let walker = BlockWalker::new(
+            seg.o,
+            seg.d,
+            seg.walk.0,
+            seg.walk.1,
+            f.block_size,
+            f.block_counts,
+        );
+        for (ta, tb, b) in walker {
+            if f.skip_empty && f.empty[b] {
+                continue;
+            }
+            let k0 = ((ta - t_in) / s).floor().max(0.0) as u64;
+            let k1 = (((tb - t_in) / s).floor() as u64).min(last);
+            for k in k0..=k1 {
+                let (t, len) = pos(k);
+                if t < ta || t >= tb {
+                    continue;
+                }
+                n.samples += 1;
+                let Some((i, rgb)) = smp.at(f, seg.o + seg.d * t, t, k as u32, seg.view, n).hit
+                else {
+                    continue;
+                };
+                let alpha = if k == last {
+                    1.0 - (-f.lut.sigma(i) * len / f.unit).exp()
+                } else {
+                    self.full_alphas[i]
+                };
+                if alpha > 0.0 && c.add(rgb, alpha) {
+                    return true;
+                }
+            }
         }
+        false
     }
 }
 
-/// Composites the sample at `t` standing for a stretch of `len` (world).
-#[inline(always)]
-fn sample<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, T>,
-    p: Vec3,
-    view: Vec3,
-    len: f32,
-    acc: &mut Acc<'_>,
-    n: &mut Counters,
-) -> bool {
-    n.samples += 1;
-    let Some((i, rgb)) = evaluate(ctx, p, view, n) else {
-        return false;
-    };
-    let alpha = 1.0 - (-ctx.lut.sigma(i) * len / ctx.unit).exp();
-    alpha > 0.0 && acc.add::<O>(rgb, alpha)
-}
+/// `mc`: ⌈L/step⌉ independent uniform positions on the whole ray (S1
+/// eqs. 5–6), drawn already sorted.
+pub(super) struct UniformMc;
 
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn stratified<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, T>,
-    o: Vec3,
-    d: Vec3,
-    view: Vec3,
-    t_in: f32,
-    t_out: f32,
-    walk: (f32, f32),
-    mut rng: Rng,
-    acc: &mut Acc<'_>,
-    n: &mut Counters,
-) -> bool {
-    let s = ctx.step;
-    let key = rng.next_u32() as u64 | (rng.next_u32() as u64) << 32;
-    let last = ((t_out - t_in) / s).ceil().max(1.0) as u64 - 1;
-    // Interval k's sample position and the length it stands for (the last
-    // interval is cut at t_out).
-    let pos = |k: u64| {
-        let a = t_in + k as f32 * s;
-        let len = if k == last { t_out - a } else { s };
-        (a + interval_random(key, k) * len, len)
-    };
-    let full_alphas = &ctx.level_alphas[(-ctx.level_lo) as usize];
-    // A sample belongs to the stretch its position lies in, so skipping an
-    // empty stretch drops exactly the samples that contribute nothing.
-    for (ta, tb, b) in BlockWalker::new(o, d, walk.0, walk.1, ctx.block_size, ctx.block_counts) {
-        if ctx.skip_empty && ctx.empty[b] {
-            continue;
-        }
-        let k0 = ((ta - t_in) / s).floor().max(0.0) as u64;
-        let k1 = (((tb - t_in) / s).floor() as u64).min(last);
-        for k in k0..=k1 {
-            let (t, len) = pos(k);
-            if t < ta || t >= tb {
+impl<T: Voxel> Marcher<T> for UniformMc {
+    #[inline(always)]
+    fn march<S: Sampler<T>, C: Composite>(
+        &self,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        smp: &mut S,
+        c: &mut C,
+        n: &mut Counters,
+    ) -> bool {
+        let len = seg.t_out - seg.t_in;
+        let count = (len / f.step).ceil().max(1.0) as u32;
+        // S1 eq. 6: each of n samples of pdf 1/L weighs L/n.
+        let w = len / count as f32;
+        for (k, u) in SortedUniforms::new(rng(f, seg), count).enumerate() {
+            let t = seg.t_in + u * len;
+            let p = seg.o + seg.d * t;
+            if f.skip_empty && f.in_empty_block(p) {
                 continue;
             }
             n.samples += 1;
-            let Some((i, rgb)) = evaluate(ctx, o + d * t, view, n) else {
+            let Some((i, rgb)) = smp.at(f, p, t, k as u32, seg.view, n).hit else {
                 continue;
             };
-            let alpha = if k == last {
-                1.0 - (-ctx.lut.sigma(i) * len / ctx.unit).exp()
-            } else {
-                full_alphas[i]
-            };
-            if alpha > 0.0 && acc.add::<O>(rgb, alpha) {
+            let alpha = 1.0 - (-f.lut.sigma(i) * w / f.unit).exp();
+            if alpha > 0.0 && c.add(rgb, alpha) {
                 return true;
             }
         }
+        false
     }
-    false
 }
 
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn uniform_mc<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, T>,
-    o: Vec3,
-    d: Vec3,
-    view: Vec3,
-    t_in: f32,
-    t_out: f32,
-    rng: Rng,
-    acc: &mut Acc<'_>,
-    n: &mut Counters,
-) -> bool {
-    let len = t_out - t_in;
-    let count = (len / ctx.step).ceil().max(1.0) as u32;
-    // S1 eq. 6: each of n samples of pdf 1/L weighs L/n.
-    let w = len / count as f32;
-    for u in SortedUniforms::new(rng, count) {
-        let p = o + d * (t_in + u * len);
-        if ctx.skip_empty && in_empty_block(ctx, p) {
-            continue;
-        }
-        if sample::<T, O>(ctx, p, view, w, acc, n) {
-            return true;
-        }
-    }
-    false
+/// `importance`: stratified positions from a pdf per block (see the
+/// module's doc): the pdf, and per level `j` the spacing `step·2^j` (world
+/// units) and the step opacity of every table entry.
+pub(super) struct Importance<'a> {
+    pub pdf: &'a [PdfBlock],
+    pub steps: &'a [f32],
+    pub alphas: &'a [Box<[f32; LUT_SIZE]>],
 }
 
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn importance<T: Voxel, O: Optics>(
-    ctx: &RayCtx<'_, T>,
-    o: Vec3,
-    d: Vec3,
-    view: Vec3,
-    walk: (f32, f32),
-    xi: f32,
-    acc: &mut Acc<'_>,
-    n: &mut Counters,
-) -> bool {
-    // BETA·log₂ e × the optical depth of the blocks' mean extinction so
-    // far: the transmittance expected to reach a block is exp(−depth).
-    let beta = BETA * std::f32::consts::LOG2_E;
-    let mut tau = 0.0f32;
-    let stretches = BlockWalker::new(o, d, walk.0, walk.1, ctx.block_size, ctx.block_counts).map(
-        |(ta, tb, b)| {
-            let blk = ctx.pdf[b];
+impl<T: Voxel> Marcher<T> for Importance<'_> {
+    #[inline(always)]
+    fn march<S: Sampler<T>, C: Composite>(
+        &self,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        smp: &mut S,
+        c: &mut C,
+        n: &mut Counters,
+    ) -> bool {
+        // One offset per ray; the passes follow the pixel's rotated
+        // golden-ratio sequence, as `jitter`'s do.
+        let xi = super::rng::pixel_sequence(f.seed, seg.pixel.0, seg.pixel.1, seg.pass);
+        // BETA·log₂ e × the optical depth of the blocks' mean extinction so
+        // far: the transmittance expected to reach a block is exp(−depth).
+        let beta = BETA * std::f32::consts::LOG2_E;
+        let mut tau = 0.0f32;
+        let walker = BlockWalker::new(
+            seg.o,
+            seg.d,
+            seg.walk.0,
+            seg.walk.1,
+            f.block_size,
+            f.block_counts,
+        );
+        let stretches = walker.map(|(ta, tb, b)| {
+            let blk = self.pdf[b];
             let j = if blk.level < 0.0 {
                 NO_MASS
             } else {
@@ -244,17 +227,19 @@ fn importance<T: Voxel, O: Optics>(
             };
             tau += blk.sigma_mean * (tb - ta);
             (ta, tb, j)
-        },
-    );
-    systematic(stretches, ctx.importance_steps, xi, |t, j| {
-        n.samples += 1;
-        let Some((i, rgb)) = evaluate(ctx, o + d * t, view, n) else {
-            return false;
-        };
-        // S1 eq. 7: the sample stands for Δ = 1/(n·p(t)) = step·2^j.
-        let alpha = ctx.importance_alphas[j][i];
-        alpha > 0.0 && acc.add::<O>(rgb, alpha)
-    })
+        });
+        let mut k = 0u32;
+        systematic(stretches, self.steps, xi, |t, j| {
+            n.samples += 1;
+            k += 1;
+            let Some((i, rgb)) = smp.at(f, seg.o + seg.d * t, t, k, seg.view, n).hit else {
+                return false;
+            };
+            // S1 eq. 7: the sample stands for Δ = 1/(n·p(t)) = step·2^j.
+            let alpha = self.alphas[j][i];
+            alpha > 0.0 && c.add(rgb, alpha)
+        })
+    }
 }
 
 /// Level of a block the `importance` pdf gives no mass (transparent).

@@ -4,7 +4,7 @@
 //! light reaching the surface is attenuated by the smoke along a shadow ray
 //! (Beer–Lambert, `T = exp(−∫σ ds)`) and blocked by other shapes.
 
-use super::ray::RayCtx;
+use super::ray::Frame;
 use crate::geometry::{Geometry, Hit, SurfaceLight};
 use crate::transfer::Lut;
 use crate::volume::Voxel;
@@ -21,7 +21,7 @@ pub(super) struct SurfaceCtx<'a> {
 /// The lit linear colour of `hit` on the ray `origin + dir·t` (world).
 #[inline]
 pub(super) fn shade<T: Voxel>(
-    ctx: &RayCtx<'_, T>,
+    ctx: &Frame<'_, T>,
     s: &SurfaceCtx<'_>,
     origin: Vec3,
     dir: Vec3,
@@ -53,7 +53,7 @@ pub(super) fn shade<T: Voxel>(
 /// volume's edge: midpoint sums of the extinction at the render's base step.
 #[inline]
 pub(super) fn transmittance<T: Voxel>(
-    ctx: &RayCtx<'_, T>,
+    ctx: &Frame<'_, T>,
     p: Vec3,
     l: Vec3,
     interpolations: &mut u64,

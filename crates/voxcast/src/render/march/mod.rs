@@ -12,6 +12,12 @@
 //! picture; and a marcher whose step is forced constant reproduces `uniform`
 //! exactly.
 
+mod steps;
+mod threshold;
+
+pub(super) use steps::{BlockMax, Fixed, Midpoint, Steps};
+pub(super) use threshold::Threshold;
+
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 

@@ -1,0 +1,240 @@
+//! Marchers with a step per block: `uniform` and `jitter` (one step
+//! everywhere), S0's `adaptive` (the step from the derivative at the block's
+//! midpoint) and `adaptive-max` (from the block's largest derivative).
+//!
+//! The block walk is an interval iterator in the manner of Open VKL's
+//! `vklIterateInterval`: consecutive blocks that are sampled with the same
+//! step merge into one interval, so the per-sample loop runs over a whole
+//! interval — for `uniform` without skipping, the whole ray — and the cost
+//! of a block boundary (the stretch of the last sample, corrected with an
+//! `exp`) is paid only where the step changes or a skip begins. Sample
+//! positions are `t₀ + n·s`, whatever merged, so the picture is that of the
+//! block-by-block march.
+
+use super::BlockWalker;
+use crate::render::ray::{flush, Composite, Counters, Frame, Marcher, Pending, Sampler, Segment};
+use crate::transfer::LUT_SIZE;
+use crate::volume::Voxel;
+
+/// How the step level of a block is chosen: `j` in `step·2^j`.
+pub(in crate::render) trait Level: Sync {
+    fn level<T: Voxel>(
+        &self,
+        steps: &Steps<Self>,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        block: (usize, f32, f32),
+        n: &mut Counters,
+    ) -> i32
+    where
+        Self: Sized;
+}
+
+/// One step everywhere (`uniform`, `jitter`).
+pub(in crate::render) struct Fixed;
+
+impl Level for Fixed {
+    #[inline(always)]
+    fn level<T: Voxel>(
+        &self,
+        _: &Steps<Self>,
+        _: &Frame<'_, T>,
+        _: &Segment,
+        _: (usize, f32, f32),
+        _: &mut Counters,
+    ) -> i32 {
+        0
+    }
+}
+
+/// S0 eqs. 1–6: `k` the largest partial derivative at the block's midpoint.
+pub(in crate::render) struct Midpoint;
+
+impl Level for Midpoint {
+    #[inline(always)]
+    fn level<T: Voxel>(
+        &self,
+        st: &Steps<Self>,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        (b, ta, tb): (usize, f32, f32),
+        n: &mut Counters,
+    ) -> i32 {
+        if f.empty[b] {
+            return st.level_hi;
+        }
+        let tm = 0.5 * (ta + tb);
+        let g = f.grid.gradient(seg.o + seg.d * tm);
+        n.interpolations += 6;
+        let k = g.x.abs().max(g.y.abs()).max(g.z.abs());
+        st.level_of(k, seg.t_out, tm)
+    }
+}
+
+/// `adaptive-max`: `k` the block's largest derivative (precomputed).
+pub(in crate::render) struct BlockMax<'a>(pub &'a [f32]);
+
+impl Level for BlockMax<'_> {
+    #[inline(always)]
+    fn level<T: Voxel>(
+        &self,
+        st: &Steps<Self>,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        (b, ta, tb): (usize, f32, f32),
+        _: &mut Counters,
+    ) -> i32 {
+        if f.empty[b] {
+            return st.level_hi;
+        }
+        st.level_of(self.0[b], seg.t_out, 0.5 * (ta + tb))
+    }
+}
+
+/// A step-per-block marcher: the level rule and the step tables.
+pub(in crate::render) struct Steps<'a, L> {
+    pub rule: L,
+    /// Allowed power-of-two levels, and `k_ref`.
+    pub level_lo: i32,
+    pub level_hi: i32,
+    pub k_ref: f32,
+    /// Per level (index `j − level_lo`): the step in world units and the
+    /// step opacity of every table entry.
+    pub level_steps: &'a [f32],
+    pub level_alphas: &'a [Box<[f32; LUT_SIZE]>],
+}
+
+impl<L> Steps<'_, L> {
+    /// The level of a block with largest derivative `k` whose midpoint is
+    /// at `tm` on a ray leaving at `t_out`: `F = k·|MN|/|MS|`.
+    #[inline(always)]
+    fn level_of(&self, k: f32, t_out: f32, tm: f32) -> i32 {
+        let f = k * t_out / tm.max(1e-6);
+        if f > 0.0 {
+            ((self.k_ref / f).log2().round() as i32).clamp(self.level_lo, self.level_hi)
+        } else {
+            self.level_hi
+        }
+    }
+}
+
+/// A run of samples `n0..n1` (indices on the grid `t₀ + n·s`) at level
+/// index `li`.
+#[derive(Clone, Copy)]
+struct Run {
+    n0: u32,
+    n1: u32,
+    li: usize,
+}
+
+impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
+    #[inline(always)]
+    fn march<S: Sampler<T>, C: Composite>(
+        &self,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        s: &mut S,
+        c: &mut C,
+        n: &mut Counters,
+    ) -> bool {
+        let walker = BlockWalker::new(
+            seg.o,
+            seg.d,
+            seg.walk.0,
+            seg.t_out,
+            f.block_size,
+            f.block_counts,
+        );
+        // Past `t_stop` every block is empty: the walk ends there once no
+        // sample waits for its stretch.
+        let t_stop = seg.walk.1;
+        let mut pending: Option<Pending> = None;
+        let mut run: Option<Run> = None;
+        for (ta, tb, b) in walker {
+            if ta >= t_stop && pending.is_none() && run.is_none() {
+                break;
+            }
+            let j = self.rule.level(self, f, seg, (b, ta, tb), n);
+            let li = (j - self.level_lo) as usize;
+            let st = self.level_steps[li];
+            let n0 = ((ta - seg.t0) / st).ceil().max(0.0);
+            let n1 = ((tb - seg.t0) / st).ceil().max(0.0);
+            if n1 <= n0 {
+                continue;
+            }
+            let (n0, n1) = (n0 as u32, n1 as u32);
+            let skip = f.skip_empty && f.empty[b];
+            if let Some(r) = &mut run {
+                if !S::PER_BLOCK && !skip && r.li == li && r.n1 == n0 {
+                    // Same step, contiguous: the interval grows.
+                    r.n1 = n1;
+                    continue;
+                }
+            }
+            if let Some(r) = run.take() {
+                if self.sample_run(f, seg, r, &mut pending, s, c, n) {
+                    return true;
+                }
+            }
+            // The pending sample's stretch ends at this block's first
+            // sample, whether or not the block is skipped.
+            if let Some(p) = pending.take() {
+                if flush(f, p, seg.t0 + n0 as f32 * st, c) {
+                    return true;
+                }
+            }
+            if skip {
+                s.restart();
+            } else {
+                run = Some(Run { n0, n1, li });
+            }
+        }
+        if let Some(r) = run {
+            if self.sample_run(f, seg, r, &mut pending, s, c, n) {
+                return true;
+            }
+        }
+        if let Some(p) = pending {
+            return flush(f, p, seg.t_out.max(p.t), c);
+        }
+        false
+    }
+}
+
+impl<L> Steps<'_, L> {
+    /// Samples a run: every sample but the last is composited with the
+    /// run's step opacity; the last waits in `pending` for its stretch.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn sample_run<T: Voxel, S: Sampler<T>, C: Composite>(
+        &self,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        r: Run,
+        pending: &mut Option<Pending>,
+        s: &mut S,
+        c: &mut C,
+        n: &mut Counters,
+    ) -> bool {
+        let st = self.level_steps[r.li];
+        let alphas = &self.level_alphas[r.li];
+        let last = r.n1 - 1;
+        s.restart();
+        for k in r.n0..last {
+            let t = seg.t0 + k as f32 * st;
+            if let Some((i, rgb)) = s.at(f, seg.o + seg.d * t, t, k, seg.view, n).hit {
+                let alpha = alphas[i];
+                if alpha > 0.0 && c.add(rgb, alpha) {
+                    n.samples += (k + 1 - r.n0) as u64;
+                    return true;
+                }
+            }
+        }
+        n.samples += (r.n1 - r.n0) as u64;
+        let t = seg.t0 + last as f32 * st;
+        if let Some((entry, rgb)) = s.at(f, seg.o + seg.d * t, t, last, seg.view, n).hit {
+            *pending = Some(Pending { t, entry, rgb });
+        }
+        false
+    }
+}

@@ -1,0 +1,163 @@
+//! How a value is reconstructed at a sample (DESIGN.md axis 2), classified
+//! by the transfer function and shaded: [`Trilinear`] every time, or S0's
+//! [`Grouped`] reuse; each with [`Flat`] colour or [`Phong`] shading. The
+//! choices are types, so the per-sample path has no branch on them.
+
+use super::march::group_size;
+use super::ray::{Counters, Frame, Sample, Sampler};
+use super::shading::BlinnPhong;
+use crate::transfer::Lut;
+use crate::volume::Voxel;
+use glam::Vec3;
+
+/// The colour a classified sample shows.
+pub(super) trait Shade: Copy + Sync {
+    fn rgb<T: Voxel>(
+        &self,
+        f: &Frame<'_, T>,
+        entry: usize,
+        p: Vec3,
+        view: Vec3,
+        n: &mut Counters,
+    ) -> Vec3;
+}
+
+/// The transfer function's colour, unshaded.
+#[derive(Clone, Copy)]
+pub(super) struct Flat;
+
+impl Shade for Flat {
+    #[inline(always)]
+    fn rgb<T: Voxel>(
+        &self,
+        f: &Frame<'_, T>,
+        i: usize,
+        _: Vec3,
+        _: Vec3,
+        _: &mut Counters,
+    ) -> Vec3 {
+        let e = f.lut.entry(i);
+        Vec3::new(e[0], e[1], e[2])
+    }
+}
+
+/// Gradient Blinn–Phong shading with a headlight.
+#[derive(Clone, Copy)]
+pub(super) struct Phong(pub BlinnPhong);
+
+impl Shade for Phong {
+    #[inline(always)]
+    fn rgb<T: Voxel>(
+        &self,
+        f: &Frame<'_, T>,
+        i: usize,
+        p: Vec3,
+        view: Vec3,
+        n: &mut Counters,
+    ) -> Vec3 {
+        let e = f.lut.entry(i);
+        let g = f.grid.gradient(p);
+        n.shaded += 1;
+        self.0
+            .shade(Vec3::new(e[0], e[1], e[2]), g, f.inv_spacing, view)
+    }
+}
+
+/// Reconstructs, classifies and shades the sample at voxel position `p`.
+#[inline(always)]
+pub(super) fn evaluate<T: Voxel, Sh: Shade>(
+    f: &Frame<'_, T>,
+    sh: &Sh,
+    p: Vec3,
+    view: Vec3,
+    n: &mut Counters,
+) -> Sample {
+    let value = f.grid.sample(p);
+    n.interpolations += 1;
+    let hit = match Lut::index(value) {
+        Some(i) if f.lut.sigma(i) > 0.0 => Some((i, sh.rgb(f, i, p, view, n))),
+        _ => None,
+    };
+    Sample { value, hit }
+}
+
+/// Trilinear reconstruction at every sample.
+#[derive(Clone, Copy)]
+pub(super) struct Trilinear<Sh>(pub Sh);
+
+impl<T: Voxel, Sh: Shade> Sampler<T> for Trilinear<Sh> {
+    const PER_BLOCK: bool = false;
+    #[inline(always)]
+    fn begin(&mut self, _: f32) {}
+    #[inline(always)]
+    fn restart(&mut self) {}
+    #[inline(always)]
+    fn at(
+        &mut self,
+        f: &Frame<'_, T>,
+        p: Vec3,
+        _: f32,
+        _: u32,
+        view: Vec3,
+        n: &mut Counters,
+    ) -> Sample {
+        evaluate(f, &self.0, p, view, n)
+    }
+}
+
+/// S0 grouped interpolation: samples in the nearest third of the ray are
+/// reconstructed, farther ones reuse the sample of their group's head
+/// (groups of 2 in the middle third, 3 in the farthest: the `k`-th sample
+/// of a march is a head when `k` is a multiple of its group size, and the
+/// first sample of a block, or after a skip, always is — so skipping an
+/// empty block changes no pixel).
+#[derive(Clone, Copy)]
+pub(super) struct Grouped<Sh> {
+    shade: Sh,
+    t_out: f32,
+    fresh: bool,
+    last: Sample,
+}
+
+impl<Sh> Grouped<Sh> {
+    pub fn new(shade: Sh) -> Self {
+        Grouped {
+            shade,
+            t_out: 0.0,
+            fresh: true,
+            last: Sample {
+                value: 0.0,
+                hit: None,
+            },
+        }
+    }
+}
+
+impl<T: Voxel, Sh: Shade> Sampler<T> for Grouped<Sh> {
+    const PER_BLOCK: bool = true;
+    #[inline(always)]
+    fn begin(&mut self, t_out: f32) {
+        self.t_out = t_out;
+        self.fresh = true;
+    }
+    #[inline(always)]
+    fn restart(&mut self) {
+        self.fresh = true;
+    }
+    #[inline(always)]
+    fn at(
+        &mut self,
+        f: &Frame<'_, T>,
+        p: Vec3,
+        t: f32,
+        k: u32,
+        view: Vec3,
+        n: &mut Counters,
+    ) -> Sample {
+        if self.fresh || k.is_multiple_of(group_size(t, self.t_out)) {
+            self.fresh = false;
+            self.last = evaluate(f, &self.shade, p, view, n);
+        }
+        self.last
+    }
+}
