@@ -554,6 +554,8 @@ fn info(a: InfoArgs) -> Result<()> {
     } else {
         None
     };
+    // NIfTI-1/2, Analyze, MGH, MINC: what the header says.
+    let header = voxcast::io::header_summary(Path::new(&a.input), &scene.input.options)?;
     let s = *vol.stats();
     let hist = vol.histogram(256);
     let pct = [0.01, 0.05, 0.25, 0.5, 0.75, 0.95, 0.99].map(|q| (q, hist.quantile(q)));
@@ -582,6 +584,7 @@ fn info(a: InfoArgs) -> Result<()> {
             "fds": fds,
             "wrf": wrf,
             "dicom": dicom,
+            "header": header.as_ref().map(|(_, lines)| lines),
             "time": vol.time,
         });
         println!("{}", serde_json::to_string_pretty(&j)?);
@@ -638,6 +641,12 @@ fn info(a: InfoArgs) -> Result<()> {
     }
     if let Some(lines) = &wrf {
         println!("  WRF output");
+        for l in lines {
+            println!("    {l}");
+        }
+    }
+    if let Some((title, lines)) = &header {
+        println!("  {title}");
         for l in lines {
             println!("    {l}");
         }

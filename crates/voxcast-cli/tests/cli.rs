@@ -353,3 +353,34 @@ fn info_on_a_dicom_folder_with_strays_lists_series_and_skipped_files() {
     assert_eq!(j["dims"], serde_json::json!([48, 48, 1]));
     assert!(j["dicom"][1].as_str().unwrap().ends_with("(read)"), "{j}");
 }
+
+#[test]
+fn info_warns_about_raw_nrrd_bytes_past_the_sizes_and_shows_new_format_headers() {
+    let dir = tempfile::tempdir().unwrap();
+    // 2×2×2 uint8 plus 5 stray bytes: read, with one warning naming them.
+    let mut b = b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n\n".to_vec();
+    b.extend_from_slice(&[1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 9, 9]);
+    std::fs::write(dir.path().join("t.nrrd"), &b).unwrap();
+    let out = voxcast(&["info", "t.nrrd"], dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("warning") && err.contains("t.nrrd") && err.contains("5 byte(s) after"),
+        "{err}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("range       1 … 8"));
+    // The added formats, end to end: `info` prints their header facts.
+    let formats = Path::new(env!("CARGO_MANIFEST_DIR")).join("../voxcast/tests/data/formats");
+    for (name, says) in [
+        ("nifti2_le.nii", "NIfTI-2 (single file), little-endian"),
+        (
+            "analyze_le.img",
+            "Analyze 7.5 (header + image file analyze_le.img)",
+        ),
+        ("brain.mgz", "FreeSurfer MGZ (gzip)"),
+    ] {
+        let out = voxcast(&["info", formats.join(name).to_str().unwrap()], dir.path());
+        let s = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success() && s.contains(says), "{name}: {s}");
+    }
+}

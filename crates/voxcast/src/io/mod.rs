@@ -10,11 +10,14 @@ pub mod dicom;
 pub mod fds;
 pub mod image_stack;
 pub mod metaimage;
+pub mod mgh;
+pub mod minc;
 pub mod mitsuba_vol;
 pub mod nifti;
 pub mod nrrd;
 pub mod nrrd_write;
 pub mod raw;
+mod stored;
 #[cfg(test)]
 mod test_support;
 pub mod util;
@@ -65,7 +68,12 @@ pub enum Format {
     Nrrd,
     MetaImage,
     Vtk,
+    /// NIfTI-1, NIfTI-2 and Analyze 7.5 (one reader for the family).
     Nifti,
+    /// FreeSurfer MGH/MGZ.
+    Mgh,
+    /// MINC-2 (HDF5; needs the `minc` feature).
+    Minc,
     Dicom,
     ImageStack,
     Raw,
@@ -110,8 +118,15 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::MetaImage)
     } else if name.ends_with(".vtk") {
         Some(Format::Vtk)
-    } else if name.ends_with(".nii") || name.ends_with(".nii.gz") {
+    } else if [".nii", ".nii.gz", ".hdr", ".hdr.gz", ".img", ".img.gz"]
+        .iter()
+        .any(|e| name.ends_with(e))
+    {
         Some(Format::Nifti)
+    } else if name.ends_with(".mgh") || name.ends_with(".mgz") {
+        Some(Format::Mgh)
+    } else if name.ends_with(".mnc") || name.ends_with(".mnc2") {
+        Some(Format::Minc)
     } else if name.ends_with(".dcm") || name.ends_with(".dcm.gz") {
         Some(Format::Dicom)
     } else if name.ends_with(".vdb") {
@@ -131,17 +146,12 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     let head = util::read_head(path, 352)?;
     let nifti1_magic =
         head.len() >= 348 && (&head[344..348] == b"n+1\0" || &head[344..348] == b"ni1\0");
-    if name.ends_with(".hdr") && nifti1_magic {
-        return Ok(Format::Nifti);
-    }
-    if let Some(advice) = not_read(&name) {
-        return Err(Error::unsupported(path, advice));
-    }
+    let nifti2_magic = head.len() >= 12 && &head[4..12] == b"n+2\0\r\n\x1a\n";
     if head.starts_with(b"NRRD") {
         Ok(Format::Nrrd)
     } else if head.starts_with(b"# vtk DataFile") {
         Ok(Format::Vtk)
-    } else if nifti1_magic {
+    } else if nifti1_magic || nifti2_magic {
         Ok(Format::Nifti)
     } else if head.len() >= 132 && &head[128..132] == b"DICM" {
         Ok(Format::Dicom)
@@ -167,22 +177,8 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .hdr/.img .mgh .mgz .mnc .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
-    }
-}
-
-/// Formats a user may expect that voxcast does not read, by file name: what
-/// to convert them with.
-fn not_read(name: &str) -> Option<&'static str> {
-    if name.ends_with(".mnc") || name.ends_with(".mnc2") {
-        Some("MINC (.mnc) is not read: convert it to NIfTI with `mnc2nii IN.mnc OUT.nii` (minc-tools) or nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.mnc OUT.nii.gz`)")
-    } else if name.ends_with(".mgh") || name.ends_with(".mgz") {
-        Some("FreeSurfer MGH/MGZ is not read: convert it with `mri_convert IN.mgz OUT.nii.gz` (FreeSurfer) or nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.mgz OUT.nii.gz`)")
-    } else if name.ends_with(".hdr") || name.ends_with(".img") {
-        Some("Analyze 7.5 (.hdr/.img without the NIfTI magic) is not read: convert it with nibabel (`python3 -c \"import nibabel as nib, sys; nib.save(nib.Nifti1Image.from_image(nib.load(sys.argv[1])), sys.argv[2])\" IN.hdr OUT.nii.gz`) or `fslchfiletype NIFTI_GZ IN.hdr`")
-    } else {
-        None
     }
 }
 
@@ -193,6 +189,8 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::MetaImage => metaimage::read(path)?,
         Format::Vtk => vtk::read(path)?,
         Format::Nifti => nifti::read(path)?,
+        Format::Mgh => mgh::read(path)?,
+        Format::Minc => minc::read(path)?,
         Format::Dicom => dicom::read(path, opts)?,
         Format::ImageStack => image_stack::read(path)?,
         Format::Raw => raw::read(path, opts.raw.as_ref().expect("detect checked raw"))?,
@@ -213,40 +211,68 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
     Ok(vol)
 }
 
+/// Header facts for `voxcast info` of the formats whose header says more
+/// than the volume shows (NIfTI-1/2 and Analyze, MGH/MGZ, MINC-2): a title
+/// and lines; `None` for other formats.
+pub fn header_summary(
+    path: &Path,
+    opts: &OpenOptions,
+) -> Result<Option<(&'static str, Vec<String>)>> {
+    Ok(match detect(path, opts)? {
+        Format::Nifti => Some(("NIfTI/Analyze header", nifti::summary(path)?)),
+        Format::Mgh => Some(("MGH header", mgh::summary(path)?)),
+        Format::Minc => Some(("MINC-2 header", minc::summary(path)?)),
+        _ => None,
+    })
+}
+
 #[cfg(test)]
 mod detect_tests {
     use super::*;
 
     #[test]
-    fn formats_not_read_are_named_with_a_converter() {
+    fn the_nifti_family_mgh_and_minc_are_detected() {
         let dir = tempfile::tempdir().unwrap();
         let opts = OpenOptions::default();
-        let mut hdf5 = b"\x89HDF\r\n\x1a\n".to_vec();
-        hdf5.resize(400, 0);
-        for (name, bytes, says) in [
-            ("brain.mnc", hdf5.clone(), ["MINC", "mnc2nii"]),
-            (
-                "brain.mgz",
-                vec![0x1f, 0x8b, 8, 0],
-                ["MGH/MGZ", "mri_convert"],
-            ),
-            ("brain.hdr", vec![0u8; 348], ["Analyze 7.5", "nibabel"]),
+        for (name, format) in [
+            ("brain.mnc", Format::Minc),
+            ("brain.mgz", Format::Mgh),
+            ("brain.mgh", Format::Mgh),
+            ("brain.hdr", Format::Nifti),
+            ("brain.img", Format::Nifti),
+            ("brain.nii.gz", Format::Nifti),
         ] {
             let p = dir.path().join(name);
-            std::fs::write(&p, &bytes).unwrap();
-            let e = detect(&p, &opts).unwrap_err();
-            let s = e.to_string();
-            assert!(matches!(e, Error::Unsupported { .. }), "{s}");
-            assert!(
-                s.contains(name) && says.iter().all(|w| s.contains(w)),
-                "{s}"
-            );
+            std::fs::write(&p, [0u8; 8]).unwrap();
+            assert_eq!(detect(&p, &opts).unwrap(), format, "{name}");
         }
-        // A NIfTI-1 pair header (.hdr with the `ni1` magic) is NIfTI.
+        // By magic, whatever the name: NIfTI-1 (`n+1` at 344), NIfTI-2
+        // (`n+2\0\r\n\x1a\n` at 4).
         let mut h = vec![0u8; 348];
-        h[344..348].copy_from_slice(b"ni1\0");
-        let p = dir.path().join("pair.hdr");
+        h[344..348].copy_from_slice(b"n+1\0");
+        let p = dir.path().join("one.bin");
         std::fs::write(&p, &h).unwrap();
         assert_eq!(detect(&p, &opts).unwrap(), Format::Nifti);
+        let mut h = vec![0u8; 540];
+        h[4..12].copy_from_slice(b"n+2\0\r\n\x1a\n");
+        let p = dir.path().join("two.bin");
+        std::fs::write(&p, &h).unwrap();
+        assert_eq!(detect(&p, &opts).unwrap(), Format::Nifti);
+    }
+
+    #[cfg(not(feature = "minc"))]
+    #[test]
+    fn minc_without_the_feature_names_it_and_a_converter() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut hdf5 = b"\x89HDF\r\n\x1a\n".to_vec();
+        hdf5.resize(400, 0);
+        let p = dir.path().join("brain.mnc");
+        std::fs::write(&p, &hdf5).unwrap();
+        let e = open(&p, &OpenOptions::default()).unwrap_err();
+        let s = e.to_string();
+        assert!(matches!(e, Error::Unsupported { .. }), "{s}");
+        for w in ["brain.mnc", "MINC-2", "--features minc", "mnc2nii"] {
+            assert!(s.contains(w), "{w}: {s}");
+        }
     }
 }
