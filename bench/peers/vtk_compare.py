@@ -497,7 +497,8 @@ def main():
                          "machine falls on both")
     ap.add_argument("--workloads", default="teapot,ml,blobs", help="comma-separated subset of teapot,ml,blobs")
     ap.add_argument("--work", type=Path, default=Path(tempfile.gettempdir()) / "voxcast-peers",
-                    help="where generated volumes, the TF file and voxcast's outputs go (kept; reused)")
+                    help="where generated volumes, the TF file and voxcast's outputs go (kept; voxcast's "
+                         "reference renders are cached there unless VOXCAST_CACHE is set)")
     ap.add_argument("--json", type=Path, help="write every measurement as JSON")
     ap.add_argument("--images", type=Path, help="write both renderers' images (PNG, sRGB) into this folder")
     args = ap.parse_args()
@@ -530,17 +531,14 @@ def main():
         if name == "teapot":
             vol, inp = read_teapot(args.data)
         elif name == "ml":
-            stem = args.work / "marschner_lobb_256"
-            if not stem.with_suffix(".nhdr").exists():
-                write_nrrd(stem, marschner_lobb(), "Marschner-Lobb fM=6 alpha=0.25 on [-1,1]^3, *255")
-            inp = stem.with_suffix(".nhdr")
-            vol = np.fromfile(stem.with_suffix(".raw"), dtype=np.uint8).reshape(256, 256, 256)
+            # Generated every run (a fraction of a second), never a stale copy.
+            vol = marschner_lobb()
+            inp = write_nrrd(args.work / "marschner_lobb_256", vol,
+                             "Marschner-Lobb fM=6 alpha=0.25 on [-1,1]^3, *255")
         else:
-            stem = args.work / "blobs24_256"
-            if not stem.with_suffix(".nhdr").exists():
-                write_nrrd(stem, gaussian_blobs(), "24 Gaussian blobs, seed 15, sigma 4..12, peak 0.5..1, *255")
-            inp = stem.with_suffix(".nhdr")
-            vol = np.fromfile(stem.with_suffix(".raw"), dtype=np.uint8).reshape(256, 256, 256)
+            vol = gaussian_blobs()
+            inp = write_nrrd(args.work / "blobs24_256", vol,
+                             "24 Gaussian blobs, seed 15, sigma 4..12, peak 0.5..1, *255")
         print(f"{name}: volume {vol.shape[::-1]} ready in {time.perf_counter() - t0:.1f} s; "
               f"{np.count_nonzero(vol) / vol.size:.0%} non-zero voxels", file=sys.stderr)
 
