@@ -469,6 +469,18 @@ impl Lut {
         &self.sigma
     }
 
+    /// Every entry premultiplied for a step of `ratio` unit lengths:
+    /// `[r·α, g·α, b·α, α]` with `α = 1 − exp(−σ·ratio)` — the one load per
+    /// sample of the unshaded ray loop.
+    pub fn premultiplied(&self, ratio: f32) -> Box<[[f32; 4]; LUT_SIZE]> {
+        let mut q = Box::new([[0.0f32; 4]; LUT_SIZE]);
+        for ((q, e), s) in q.iter_mut().zip(self.entries.iter()).zip(self.sigma.iter()) {
+            let a = 1.0 - (-s * ratio).exp();
+            *q = [e[0] * a, e[1] * a, e[2] * a, a];
+        }
+        q
+    }
+
     /// The opacity of every entry for a step of `ratio` unit lengths, for
     /// marchers that take steps of several fixed lengths.
     pub fn alphas(&self, ratio: f32) -> Box<[f32; LUT_SIZE]> {

@@ -31,10 +31,11 @@ impl Weights {
         }
     }
 
-    /// `(premultiplied emitted colour, absorbed fraction)` of a step.
+    /// `(emitted colour, absorbed fraction)` of a step of premultiplied
+    /// colour `e` and opacity `alpha`.
     #[inline(always)]
-    fn apply(self, rgb: Vec3, alpha: f32) -> (Vec3, f32) {
-        (rgb * (alpha * self.emission), alpha * self.absorption)
+    fn apply(self, e: Vec3, alpha: f32) -> (Vec3, f32) {
+        (e * self.emission, alpha * self.absorption)
     }
 }
 
@@ -84,8 +85,8 @@ pub(super) struct Front {
 
 impl Composite for Front {
     #[inline(always)]
-    fn add(&mut self, rgb: Vec3, alpha: f32) -> bool {
-        let (e, a) = self.w.apply(rgb, alpha);
+    fn add_premul(&mut self, e: Vec3, alpha: f32) -> bool {
+        let (e, a) = self.w.apply(e, alpha);
         over_front(&mut self.c, &mut self.a, e, a);
         self.a >= self.stop
     }
@@ -111,8 +112,8 @@ pub(super) struct Back<'s> {
 
 impl Composite for Back<'_> {
     #[inline(always)]
-    fn add(&mut self, rgb: Vec3, alpha: f32) -> bool {
-        self.buf.push(self.w.apply(rgb, alpha));
+    fn add_premul(&mut self, e: Vec3, alpha: f32) -> bool {
+        self.buf.push(self.w.apply(e, alpha));
         false
     }
     #[inline(always)]

@@ -677,7 +677,7 @@ struct Tables {
     level_lo: i32,
     level_hi: i32,
     level_steps: Vec<f32>,
-    level_alphas: Vec<Box<[f32; crate::transfer::LUT_SIZE]>>,
+    level_tables: Vec<Box<[[f32; 4]; crate::transfer::LUT_SIZE]>>,
 }
 
 impl Tables {
@@ -689,7 +689,7 @@ impl Tables {
             level_hi: self.level_hi,
             k_ref,
             level_steps: &self.level_steps,
-            level_alphas: &self.level_alphas,
+            level_tables: &self.level_tables,
         }
     }
 }
@@ -753,7 +753,7 @@ impl Job<'_> {
             level_lo,
             level_hi,
             level_steps: levels.iter().map(|s| s * self.unit).collect(),
-            level_alphas: levels.iter().map(|&r| self.lut.alphas(r)).collect(),
+            level_tables: levels.iter().map(|&r| self.lut.premultiplied(r)).collect(),
         };
         let k = p.adaptive.k_ref;
         match p.method {
@@ -779,8 +779,9 @@ impl Job<'_> {
                 self.grouped::<T, C, Sh, _>(f, sh, &m)
             }
             Method::Stratified => {
+                let full_alphas = self.lut.alphas(p.step);
                 let m = stochastic::Stratified {
-                    full_alphas: &t.level_alphas[0],
+                    full_alphas: &full_alphas,
                 };
                 self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
             }

@@ -14,7 +14,7 @@
 //! monomorphised loop with no flag, `Option` or `match` on the method in it.
 //! Nothing here allocates, dispatches dynamically or takes a lock.
 
-use crate::transfer::Lut;
+use crate::transfer::{Lut, LUT_SIZE};
 use crate::volume::{Grid, Voxel};
 use glam::{Vec3, Vec4};
 
@@ -99,7 +99,8 @@ pub(super) struct Counters {
 }
 
 /// A reconstructed sample: its normalised value, and its table entry and
-/// (shaded) colour unless the transfer function makes it transparent.
+/// (shaded) colour — `None` below the table (empty, NaN), and for samples
+/// the transfer function makes transparent where the shading culls them.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Sample {
     pub value: f32,
@@ -152,13 +153,31 @@ pub(super) trait Sampler<T: Voxel>: Copy + Sync {
         view: Vec3,
         n: &mut Counters,
     ) -> Sample;
+    /// [`Sampler::at`] through a premultiplied table `q` (one per step
+    /// length; [`Lut::premultiplied`]), for the marchers whose steps come
+    /// from a few fixed lengths: `(emitted colour, opacity, entry)`.
+    /// `(t, k, view)` as for `at`. A grouped sampler reuses within one
+    /// table only (the marcher restarts it when the table changes).
+    fn at_premul(
+        &mut self,
+        f: &Frame<'_, T>,
+        q: &[[f32; 4]; LUT_SIZE],
+        p: Vec3,
+        tkv: (f32, u32, Vec3),
+        n: &mut Counters,
+    ) -> Option<(Vec3, f32, usize)>;
 }
 
 /// What a sample contributes and how it is accumulated (DESIGN.md axis 3).
 pub(super) trait Composite {
     /// Adds a sample of colour `rgb` and step opacity `alpha`; true when
     /// the ray may stop (early ray termination).
-    fn add(&mut self, rgb: Vec3, alpha: f32) -> bool;
+    #[inline(always)]
+    fn add(&mut self, rgb: Vec3, alpha: f32) -> bool {
+        self.add_premul(rgb * alpha, alpha)
+    }
+    /// [`Composite::add`] with the colour already multiplied by `alpha`.
+    fn add_premul(&mut self, e: Vec3, alpha: f32) -> bool;
     /// The opacity gathered so far (0 where it is known only at the end).
     fn opacity(&self) -> f32;
     /// The composite, over the opaque surface colour `behind` if the ray

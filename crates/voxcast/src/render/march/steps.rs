@@ -12,12 +12,15 @@
 //! block-by-block march.
 
 use super::BlockWalker;
-use crate::render::ray::{flush, Composite, Counters, Frame, Marcher, Pending, Sampler, Segment};
+use crate::render::ray::{Composite, Counters, Frame, Marcher, Sampler, Segment};
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
+use glam::Vec3;
 
 /// How the step level of a block is chosen: `j` in `step·2^j`.
 pub(in crate::render) trait Level: Sync {
+    /// One level everywhere (no per-block choice).
+    const FIXED: bool = false;
     fn level<T: Voxel>(
         &self,
         steps: &Steps<Self>,
@@ -34,6 +37,7 @@ pub(in crate::render) trait Level: Sync {
 pub(in crate::render) struct Fixed;
 
 impl Level for Fixed {
+    const FIXED: bool = true;
     #[inline(always)]
     fn level<T: Voxel>(
         &self,
@@ -99,9 +103,31 @@ pub(in crate::render) struct Steps<'a, L> {
     pub level_hi: i32,
     pub k_ref: f32,
     /// Per level (index `j − level_lo`): the step in world units and the
-    /// step opacity of every table entry.
+    /// premultiplied table of that step ([`crate::transfer::Lut::premultiplied`]).
     pub level_steps: &'a [f32],
-    pub level_alphas: &'a [Box<[f32; LUT_SIZE]>],
+    pub level_tables: &'a [Box<[[f32; 4]; LUT_SIZE]>],
+}
+
+/// The last sample of an interval, waiting for its stretch: position,
+/// entry, and emitted colour and opacity for a full step.
+#[derive(Clone, Copy)]
+struct Pending {
+    t: f32,
+    entry: usize,
+    e: Vec3,
+    a: f32,
+}
+
+/// Composites `p` over the stretch up to `t_next` (opacity corrected for
+/// the stretch's length, colour scaled with it); true when the ray may stop.
+#[inline(always)]
+fn flush<T, C: Composite>(f: &Frame<'_, T>, p: Pending, t_next: f32, c: &mut C) -> bool {
+    if p.a <= 0.0 {
+        return false;
+    }
+    let ds = t_next - p.t;
+    let alpha = 1.0 - (-f.lut.sigma(p.entry) * ds / f.unit).exp();
+    alpha > 0.0 && c.add_premul(p.e * (alpha / p.a), alpha)
 }
 
 impl<L> Steps<'_, L> {
@@ -137,6 +163,27 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
         c: &mut C,
         n: &mut Counters,
     ) -> bool {
+        let mut pending: Option<Pending> = None;
+        if L::FIXED && !f.skip_empty && !S::PER_BLOCK {
+            // Nothing to choose per block: the whole ray is one interval.
+            let st = self.level_steps[0];
+            let n0 = ((seg.walk.0 - seg.t0) / st).ceil().max(0.0);
+            let n1 = ((seg.t_out - seg.t0) / st).ceil().max(0.0);
+            if n1 > n0 {
+                let r = Run {
+                    n0: n0 as u32,
+                    n1: n1 as u32,
+                    li: 0,
+                };
+                if self.sample_run(f, seg, r, &mut pending, s, c, n) {
+                    return true;
+                }
+            }
+            return match pending {
+                Some(p) => flush(f, p, seg.t_out.max(p.t), c),
+                None => false,
+            };
+        }
         let walker = BlockWalker::new(
             seg.o,
             seg.d,
@@ -148,7 +195,6 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
         // Past `t_stop` every block is empty: the walk ends there once no
         // sample waits for its stretch.
         let t_stop = seg.walk.1;
-        let mut pending: Option<Pending> = None;
         let mut run: Option<Run> = None;
         for (ta, tb, b) in walker {
             if ta >= t_stop && pending.is_none() && run.is_none() {
@@ -217,14 +263,15 @@ impl<L> Steps<'_, L> {
         n: &mut Counters,
     ) -> bool {
         let st = self.level_steps[r.li];
-        let alphas = &self.level_alphas[r.li];
+        let q = &self.level_tables[r.li];
         let last = r.n1 - 1;
         s.restart();
         for k in r.n0..last {
             let t = seg.t0 + k as f32 * st;
-            if let Some((i, rgb)) = s.at(f, seg.o + seg.d * t, t, k, seg.view, n).hit {
-                let alpha = alphas[i];
-                if alpha > 0.0 && c.add(rgb, alpha) {
+            // No `alpha > 0` test: a zero composites as nothing, and the
+            // branch would mispredict on dense data.
+            if let Some((e, a, _)) = s.at_premul(f, q, seg.o + seg.d * t, (t, k, seg.view), n) {
+                if c.add_premul(e, a) {
                     n.samples += (k + 1 - r.n0) as u64;
                     return true;
                 }
@@ -232,8 +279,8 @@ impl<L> Steps<'_, L> {
         }
         n.samples += (r.n1 - r.n0) as u64;
         let t = seg.t0 + last as f32 * st;
-        if let Some((entry, rgb)) = s.at(f, seg.o + seg.d * t, t, last, seg.view, n).hit {
-            *pending = Some(Pending { t, entry, rgb });
+        if let Some((e, a, entry)) = s.at_premul(f, q, seg.o + seg.d * t, (t, last, seg.view), n) {
+            *pending = Some(Pending { t, entry, e, a });
         }
         false
     }
