@@ -273,7 +273,9 @@ pub struct SceneArgs {
     /// Early ray termination threshold (default 0.99; 1 disables).
     #[arg(long, help_heading = "Ray casting")]
     pub ert: Option<f32>,
-    /// Compositing order.
+    /// Compositing order. Both give the same picture (early termination
+    /// and `lod`'s visibility decimation need front to back: back to front
+    /// spaces each lod leaf by its own amount of cloud).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub order: Option<OrderArg>,
     /// Optical model.
