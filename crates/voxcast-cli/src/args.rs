@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 use voxcast::camera::Projection;
 use voxcast::io::{OpenOptions, RawLayout};
-use voxcast::render::{MethodSpec, OpticalModel, Order};
+use voxcast::render::{MethodSpec, OpticalModel, Order, Simd};
 use voxcast::scene::Scene;
 use voxcast::ScalarType;
 
@@ -281,6 +281,11 @@ pub struct SceneArgs {
     /// Optical model.
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub optical: Option<OpticalArg>,
+    /// CPU inner loop: `auto` runs eight rays per SIMD packet where the CPU
+    /// has AVX2 and the render is a fixed step, unshaded, front to back;
+    /// `scalar` always runs the scalar loop (the same picture).
+    #[arg(long, value_enum, help_heading = "Ray casting")]
+    pub simd: Option<SimdArg>,
     /// Gradient (Blinn–Phong) shading: on or off (default on).
     #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
     pub shading: Option<String>,
@@ -568,6 +573,12 @@ pub enum OrderArg {
 }
 
 #[derive(clap::ValueEnum, Clone, Copy)]
+pub enum SimdArg {
+    Auto,
+    Scalar,
+}
+
+#[derive(clap::ValueEnum, Clone, Copy)]
 pub enum OpticalArg {
     AbsorptionOnly,
     EmissionOnly,
@@ -673,6 +684,12 @@ impl SceneArgs {
                 OpticalArg::AbsorptionOnly => OpticalModel::AbsorptionOnly,
                 OpticalArg::EmissionOnly => OpticalModel::EmissionOnly,
                 OpticalArg::EmissionAbsorption => OpticalModel::EmissionAbsorption,
+            };
+        }
+        if let Some(v) = self.simd {
+            r.simd = match v {
+                SimdArg::Auto => Simd::Auto,
+                SimdArg::Scalar => Simd::Scalar,
             };
         }
         if let Some(s) = &self.shading {

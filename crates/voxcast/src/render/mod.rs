@@ -12,6 +12,7 @@ pub mod march;
 pub mod medium;
 pub mod octree;
 pub mod optics;
+mod packet;
 mod path;
 pub mod phase;
 mod ray;
@@ -233,6 +234,26 @@ pub enum Order {
     BackToFront,
 }
 
+/// Which inner loop runs where both could.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Simd {
+    /// SIMD ray packets where the CPU has them (AVX2 + FMA) and the render
+    /// is one they cover (fixed step, trilinear, unshaded, front to
+    /// back); the scalar loop otherwise.
+    #[default]
+    Auto,
+    /// The scalar loop always (the reference the packets are tested
+    /// against).
+    Scalar,
+}
+
+impl Simd {
+    fn is_auto(&self) -> bool {
+        *self == Simd::Auto
+    }
+}
+
 /// Everything about a render that is not the volume, the transfer function
 /// or the camera.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -280,6 +301,9 @@ pub struct RenderParams {
     pub medium: medium::MediumParams,
     /// Parameters of `lod` (S3).
     pub lod: lod::LodParams,
+    /// SIMD ray packets or the scalar loop (the same picture).
+    #[serde(skip_serializing_if = "Simd::is_auto")]
+    pub simd: Simd,
 }
 
 impl Default for RenderParams {
@@ -305,6 +329,7 @@ impl Default for RenderParams {
             lights: Vec::new(),
             medium: medium::MediumParams::default(),
             lod: lod::LodParams::default(),
+            simd: Simd::Auto,
         }
     }
 }
@@ -757,9 +782,10 @@ impl Job<'_> {
         };
         let k = p.adaptive.k_ref;
         match p.method {
-            Method::Uniform | Method::Jitter => {
-                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k))
-            }
+            Method::Uniform | Method::Jitter => match self.packets(f, &t) {
+                Some(out) => out,
+                None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
+            },
             Method::Adaptive => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Midpoint, k)),
             Method::AdaptiveMax => {
                 self.grouped::<T, C, Sh, _>(f, sh, &t.steps(BlockMax(self.max_gradient), k))
@@ -809,6 +835,71 @@ impl Job<'_> {
             // Rendered by `path::render` before a Job is made.
             Method::SingleScatter | Method::Path => None,
         }
+    }
+
+    /// A fixed-step render through the SIMD ray packets (packet.rs), where
+    /// the CPU and the render allow; `None` where the scalar loop must run.
+    fn packets<T: Voxel>(
+        &self,
+        f: &Frame<'_, T>,
+        t: &Tables,
+    ) -> Option<Option<(Image, RenderStats)>> {
+        let p = self.params;
+        if p.simd == Simd::Scalar
+            || p.grouped
+            || p.shading
+            || p.order != Order::FrontToBack
+            || self.surface.is_some()
+            || !packet::available()
+            || !packet::fits(f.grid)
+        {
+            return None;
+        }
+        let empty: Option<Vec<i32>> = f
+            .skip_empty
+            .then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
+        let pk = packet::Packets {
+            f,
+            q: &t.level_tables[0],
+            st: t.level_steps[0],
+            weights: Weights::of(p.optical),
+            stop: if p.ert < 1.0 { p.ert } else { f32::INFINITY },
+            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
+            empty: empty.as_deref(),
+        };
+        let passes = if p.method.is_stochastic() || p.jitter {
+            p.spp
+        } else {
+            1
+        };
+        let bg = Vec3::from(p.background.map(srgb_to_linear));
+        Some(tiles::render_tile_rows(
+            p.width,
+            p.height,
+            self.progress,
+            self.cancel,
+            || (),
+            |_, stats, x0, y, out| {
+                for (j, chunk) in out.chunks_mut(packet::LANES).enumerate() {
+                    let x = x0 + (j * packet::LANES) as u32;
+                    let n = chunk.len();
+                    let mut rays = [(Vec3::ZERO, Vec3::ZERO); packet::LANES];
+                    for (i, r) in rays[..n].iter_mut().enumerate() {
+                        *r = self.cam.ray(x + i as u32, y);
+                    }
+                    let mut acc = [glam::Vec4::ZERO; packet::LANES];
+                    for pass in 0..passes {
+                        pk.row(&rays[..n], (x, y), pass, &mut acc[..n], stats);
+                    }
+                    for (px, c) in chunk.iter_mut().zip(acc) {
+                        let c = c / passes as f32;
+                        let rgb = c.truncate() + bg * (1.0 - c.w);
+                        *px = [rgb.x, rgb.y, rgb.z, c.w];
+                    }
+                }
+            },
+            |_, _| {},
+        ))
     }
 
     /// S0's grouped interpolation, for the marchers it applies to.

@@ -27,6 +27,33 @@ pub(super) fn render_tiles<S>(
     pixel: impl Fn(&mut S, &mut RenderStats, u32, u32) -> [f32; 4] + Sync,
     finish: impl Fn(S, &mut RenderStats) + Sync,
 ) -> Option<(Image, RenderStats)> {
+    render_tile_rows(
+        w,
+        h,
+        progress,
+        cancel,
+        state,
+        |s, stats, x0, y, out| {
+            for (i, px) in out.iter_mut().enumerate() {
+                *px = pixel(s, stats, x0 + i as u32, y);
+            }
+        },
+        finish,
+    )
+}
+
+/// [`render_tiles`] a tile row at a time: `row(state, stats, x0, y, out)`
+/// fills pixels `x0..x0 + out.len()` of row `y` (at most [`TILE`]), for
+/// integrators that trace neighbouring rays together (the SIMD packets).
+pub(super) fn render_tile_rows<S>(
+    w: u32,
+    h: u32,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+    state: impl Fn() -> S + Sync,
+    row: impl Fn(&mut S, &mut RenderStats, u32, u32, &mut [[f32; 4]]) + Sync,
+    finish: impl Fn(S, &mut RenderStats) + Sync,
+) -> Option<(Image, RenderStats)> {
     let tiles_x = w.div_ceil(TILE);
     let tiles_y = h.div_ceil(TILE);
     let total = (tiles_x * tiles_y) as usize;
@@ -42,11 +69,11 @@ pub(super) fn render_tiles<S>(
                 return (tx, ty, Vec::new(), stats);
             }
             let mut s = state();
-            let mut px = Vec::with_capacity((TILE * TILE) as usize);
-            for y in ty..(ty + TILE).min(h) {
-                for x in tx..(tx + TILE).min(w) {
-                    px.push(pixel(&mut s, &mut stats, x, y));
-                }
+            let tw = (tx + TILE).min(w) - tx;
+            let th = (ty + TILE).min(h) - ty;
+            let mut px = vec![[0.0; 4]; (tw * th) as usize];
+            for (r, out) in px.chunks_exact_mut(tw as usize).enumerate() {
+                row(&mut s, &mut stats, tx, ty + r as u32, out);
             }
             finish(s, &mut stats);
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;

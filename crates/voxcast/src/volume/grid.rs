@@ -7,27 +7,43 @@ use glam::Vec3;
 
 /// A stored voxel type.
 pub trait Voxel: Copy + Send + Sync + 'static {
+    /// Which of the stored types this is (for the SIMD ray packets, which
+    /// fetch each type its own way; a constant, so the choice compiles away).
+    const KIND: VoxelKind;
     fn to_f32(self) -> f32;
 }
+
+/// The stored voxel types.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VoxelKind {
+    U8,
+    U16,
+    I16,
+    F32,
+}
 impl Voxel for u8 {
+    const KIND: VoxelKind = VoxelKind::U8;
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32
     }
 }
 impl Voxel for u16 {
+    const KIND: VoxelKind = VoxelKind::U16;
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32
     }
 }
 impl Voxel for i16 {
+    const KIND: VoxelKind = VoxelKind::I16;
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self as f32
     }
 }
 impl Voxel for f32 {
+    const KIND: VoxelKind = VoxelKind::F32;
     #[inline(always)]
     fn to_f32(self) -> f32 {
         self
@@ -92,6 +108,14 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// Grid size.
     pub fn dims(&self) -> [usize; 3] {
         self.dims
+    }
+
+    /// The raw layout the SIMD ray packets fetch from: the voxels, the
+    /// index step to the +1 neighbour per axis, the largest lower-corner
+    /// index per axis and the largest coordinate (see [`Grid::sample`],
+    /// whose arithmetic they repeat lane by lane).
+    pub(crate) fn layout(&self) -> (&'a [T], [usize; 3], [usize; 3], Vec3) {
+        (self.data, self.step, self.last, self.max)
     }
 
     /// The stored values of row `(·, j, k)` (x varying).

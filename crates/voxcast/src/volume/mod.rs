@@ -6,7 +6,7 @@ mod grid;
 pub mod series;
 mod stats;
 
-pub use grid::{Grid, GridVisitor, Voxel};
+pub use grid::{Grid, GridVisitor, Voxel, VoxelKind};
 pub use series::{Series, SeriesWriter};
 pub use stats::{Histogram, ValueStats};
 
