@@ -282,7 +282,8 @@ pub struct SceneArgs {
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub optical: Option<OpticalArg>,
     /// CPU inner loop: `auto` runs eight rays per SIMD packet where the CPU
-    /// has AVX2 and the render is a fixed step, unshaded, front to back;
+    /// has AVX2 and the render is a fixed step (uniform, jitter), not grouped,
+    /// front to back;
     /// `scalar` always runs the scalar loop (the same picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,

@@ -327,7 +327,21 @@ fn an_interrupted_render_leaves_no_output_and_no_temporary_file() {
         .status()
         .unwrap();
     assert!(killed.success());
-    let status = child.wait().unwrap();
+    // A shell that starts jobs in the background without job control
+    // ignores SIGINT for them, and an ignored signal stays ignored across
+    // exec: then the render would run on for many minutes. Fail instead.
+    let start = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > Duration::from_secs(30) {
+            child.kill().unwrap();
+            child.wait().unwrap();
+            panic!("SIGINT did not stop the render: is SIGINT ignored by the shell that runs the tests?");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
     assert!(!status.success());
     assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
 }

@@ -458,6 +458,11 @@ impl Lut {
         self.entries[i]
     }
 
+    /// `[r, g, b, α_step]` of every entry.
+    pub fn entries(&self) -> &[[f32; 4]; LUT_SIZE] {
+        &self.entries
+    }
+
     /// Extinction per unit length of entry `i`.
     #[inline(always)]
     pub fn sigma(&self, i: usize) -> f32 {

@@ -180,7 +180,8 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
 
 /// The SIMD packets (where this CPU has them) against the scalar loop:
 /// every stored type, both fixed-step methods, skipping on and off, early
-/// termination on and off, every optical model, several passes of jitter.
+/// termination on and off, flat and Phong, every optical model, several
+/// passes of jitter.
 /// On a CPU without AVX2 both renders take the scalar loop and the test
 /// checks nothing new (the packets' own dispatch is then the thing tested).
 #[test]
@@ -196,7 +197,7 @@ fn packets_give_the_scalar_pixels() {
         let mut terminated = 0;
         for method in [Method::Uniform, Method::Jitter] {
             for skip_empty in [true, false] {
-                for ert in [0.9, 1.0] {
+                for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
                     for optical in [
                         OpticalModel::EmissionAbsorption,
                         OpticalModel::AbsorptionOnly,
@@ -206,7 +207,7 @@ fn packets_give_the_scalar_pixels() {
                             width: 45,
                             height: 21,
                             method,
-                            shading: false,
+                            shading,
                             skip_empty,
                             ert,
                             optical,
@@ -221,7 +222,7 @@ fn packets_give_the_scalar_pixels() {
                         let (scalar, sc) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
                         let d = max_diff(&simd, &scalar);
                         let what = format!(
-                            "{} {:?} skip {skip_empty} ert {ert} {optical:?}",
+                            "{} {:?} skip {skip_empty} ert {ert} shading {shading} {optical:?}",
                             method.name(),
                             vol.scalar_type()
                         );
@@ -230,6 +231,12 @@ fn packets_give_the_scalar_pixels() {
                         assert_eq!(ss.rays_hit, sc.rays_hit, "{what}");
                         assert!(sc.rays_hit < sc.rays, "{what}: every ray hits");
                         assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
+                        let (a, b) = (
+                            ss.gradient_interpolations as f64,
+                            sc.gradient_interpolations as f64,
+                        );
+                        assert!((a - b).abs() <= 0.02 * b, "{what}: gradients {a} vs {b}");
+                        assert_eq!(b > 0.0, shading, "{what}: gradients {b}");
                         // Samples keep their meaning: equal without
                         // skipping; with it, lanes skip sample by sample
                         // where the scalar march skips block by block.

@@ -239,7 +239,7 @@ pub enum Order {
 #[serde(rename_all = "kebab-case")]
 pub enum Simd {
     /// SIMD ray packets where the CPU has them (AVX2 + FMA) and the render
-    /// is one they cover (fixed step, trilinear, unshaded, front to
+    /// is one they cover (fixed step, trilinear, flat or Phong, front to
     /// back); the scalar loop otherwise.
     #[default]
     Auto,
@@ -845,9 +845,11 @@ impl Job<'_> {
         t: &Tables,
     ) -> Option<Option<(Image, RenderStats)>> {
         let p = self.params;
+        // The shading `shaded` picks.
+        let shading = p.shading.then(BlinnPhong::default);
         if p.simd == Simd::Scalar
             || p.grouped
-            || p.shading
+            || shading.is_some_and(|bp| !packet::shades(&bp))
             || p.order != Order::FrontToBack
             || self.surface.is_some()
             || !packet::available()
@@ -866,6 +868,7 @@ impl Job<'_> {
             stop: if p.ert < 1.0 { p.ert } else { f32::INFINITY },
             jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
             empty: empty.as_deref(),
+            shading,
         };
         let passes = if p.method.is_stochastic() || p.jitter {
             p.spp

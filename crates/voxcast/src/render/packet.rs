@@ -1,6 +1,7 @@
 //! SIMD ray packets: eight neighbouring rays of a tile row marched in
 //! lock-step, one per lane of an AVX2 register, for the commonest render —
-//! a fixed step (`uniform`, `jitter`), trilinear, unshaded, front to back.
+//! a fixed step (`uniform`, `jitter`), trilinear, flat or Blinn–Phong
+//! shaded, front to back.
 //!
 //! Each lane keeps its own ray: its sample grid `t₀ + k·s`, its first and
 //! last sample, and its accumulated colour and opacity; a lane mask drops
@@ -8,7 +9,9 @@
 //! when no lane is left. Per iteration the eight corner pairs of the
 //! trilinear fetch are four gathers (the +x neighbour comes in the same
 //! 32-bit load), the transfer-function lookup is four gathers from the
-//! premultiplied table, and compositing is plain vector arithmetic. With
+//! premultiplied table, and compositing is plain vector arithmetic; shading
+//! adds the six trilinear fetches of the gradient, skipped when no lane's
+//! sample is visible. With
 //! empty-space skipping a lane whose sample falls in an empty block jumps
 //! to its first sample past that block (one gather of the block flags per
 //! iteration), so long empty stretches cost a lane one step per block.
@@ -27,7 +30,8 @@ use super::composite::Weights;
 use super::march::intersect_box;
 use super::optics::over_front;
 use super::ray::{Counters, Frame};
-use super::sample::{evaluate_premul, Flat};
+use super::sample::{evaluate_premul, Flat, Phong};
+use super::shading::BlinnPhong;
 use super::stats::RenderStats;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
@@ -70,6 +74,15 @@ pub(super) struct Packets<'a, T> {
     pub jitter: Option<u64>,
     /// Block emptiness as 32-bit flags (−1 empty), with skipping on.
     pub empty: Option<&'a [i32]>,
+    /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
+    /// flat colour.
+    pub shading: Option<BlinnPhong>,
+}
+
+/// Whether the packets can shade with `bp`: the specular power is taken by
+/// repeated squaring, so the exponent must be a whole number (≤ 64).
+pub(super) fn shades(bp: &BlinnPhong) -> bool {
+    bp.shininess.fract() == 0.0 && (0.0..=64.0).contains(&bp.shininess)
 }
 
 /// One lane's ray, set up by the scalar code as [`super::trace::trace`]
@@ -78,6 +91,8 @@ pub(super) struct Packets<'a, T> {
 struct Lane {
     o: Vec3,
     d: Vec3,
+    /// Towards the eye (world), for shading.
+    view: Vec3,
     t0: f32,
     t_out: f32,
     /// Samples `k0..k_end` go through the vector loop.
@@ -130,6 +145,7 @@ impl<T: Voxel> Packets<'_, T> {
         Some(Lane {
             o,
             d,
+            view: -dir,
             t0,
             t_out,
             k0,
@@ -157,13 +173,27 @@ impl<T: Voxel> Packets<'_, T> {
             return;
         }
         let mut acc = [Vec4::ZERO; LANES];
-        let mut count = [0u32; LANES];
+        let mut count = [[0u32; 2]; LANES];
         let mut alive = [false; LANES];
         // SAFETY: `available()` was checked before any packet was made
-        // (the only caller, `Job::packets`, does), and `fits` for the grid.
+        // (the only caller, `Job::packets`, does), `fits` for the grid and
+        // `shades` for the shading.
         #[cfg(target_arch = "x86_64")]
         unsafe {
-            avx2::march(self, &lanes, &mut acc, &mut count, &mut alive)
+            match (self.empty.is_some(), self.shading.is_some()) {
+                (false, false) => {
+                    avx2::march::<T, false, false>(self, &lanes, &mut acc, &mut count, &mut alive)
+                }
+                (true, false) => {
+                    avx2::march::<T, true, false>(self, &lanes, &mut acc, &mut count, &mut alive)
+                }
+                (false, true) => {
+                    avx2::march::<T, false, true>(self, &lanes, &mut acc, &mut count, &mut alive)
+                }
+                (true, true) => {
+                    avx2::march::<T, true, true>(self, &lanes, &mut acc, &mut count, &mut alive)
+                }
+            }
         };
         let mut n = Counters::default();
         for i in 0..rays.len() {
@@ -173,13 +203,15 @@ impl<T: Voxel> Packets<'_, T> {
             if let (Some(k), false) = (l.last, terminated) {
                 terminated = self.last(&l, k, &mut c, &mut a, &mut n);
             }
-            n.samples += count[i] as u64;
-            n.interpolations += count[i] as u64;
+            n.samples += count[i][0] as u64;
+            n.interpolations += count[i][0] as u64;
+            n.shaded += count[i][1] as u64;
             stats.early_terminated += terminated as u64;
             out[i] += c.extend(a);
         }
         stats.samples += n.samples;
         stats.interpolations += n.interpolations;
+        stats.gradient_interpolations += 6 * n.shaded;
     }
 
     /// The last sample of lane `l` (index `k`), composited over its
@@ -189,8 +221,12 @@ impl<T: Voxel> Packets<'_, T> {
         let f = self.f;
         let t = l.t0 + k as f32 * self.st;
         n.samples += 1;
-        let Some((e, pa, entry)) = evaluate_premul(f, &Flat, self.q, l.o + l.d * t, Vec3::ZERO, n)
-        else {
+        let p = l.o + l.d * t;
+        let sample = match self.shading {
+            Some(bp) => evaluate_premul(f, &Phong(bp), self.q, p, l.view, n),
+            None => evaluate_premul(f, &Flat, self.q, p, l.view, n),
+        };
+        let Some((e, pa, entry)) = sample else {
             return false;
         };
         if pa <= 0.0 {
@@ -262,6 +298,12 @@ mod avx2 {
         }
     }
 
+    /// `a + (b − a)·t` without fusing, as the scalar path computes it.
+    #[inline(always)]
+    unsafe fn lerp(a: __m256, b: __m256, t: __m256) -> __m256 {
+        _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), t))
+    }
+
     /// Where the ray `o + d·t` (one axis) leaves block `b` of edge `bs`:
     /// its far face (∞ where the ray runs parallel to the axis).
     #[inline(always)]
@@ -280,10 +322,119 @@ mod avx2 {
         _mm256_blendv_ps(te, _mm256_set1_ps(f32::INFINITY), flat)
     }
 
+    /// `[x, y, z]` of three registers.
+    type V3 = [__m256; 3];
+
+    /// The grid as the lanes read it (see `Grid::sample`).
+    struct Vol {
+        data: *const u8,
+        len_bytes: i32,
+        max: V3,
+        last: [__m256i; 3],
+        sy: __m256i,
+        sz: __m256i,
+        dimx: __m256i,
+        dimy: __m256i,
+        scale: __m256,
+        offset: __m256,
+    }
+
+    impl Vol {
+        /// Positions clamped into the grid as `Grid::sample` clamps them
+        /// (max first: a NaN becomes 0).
+        #[inline(always)]
+        unsafe fn clamp(&self, p: V3) -> V3 {
+            let z = _mm256_setzero_ps();
+            [
+                _mm256_min_ps(_mm256_max_ps(p[0], z), self.max[0]),
+                _mm256_min_ps(_mm256_max_ps(p[1], z), self.max[1]),
+                _mm256_min_ps(_mm256_max_ps(p[2], z), self.max[2]),
+            ]
+        }
+
+        /// The normalised trilinear value at `p` (voxel coordinates),
+        /// lane by lane `Grid::sample`.
+        #[inline(always)]
+        unsafe fn sample<T: Voxel>(&self, p: V3) -> __m256 {
+            let [px, py, pz] = self.clamp(p);
+            let ix = _mm256_min_epi32(_mm256_cvttps_epi32(px), self.last[0]);
+            let iy = _mm256_min_epi32(_mm256_cvttps_epi32(py), self.last[1]);
+            let iz = _mm256_min_epi32(_mm256_cvttps_epi32(pz), self.last[2]);
+            let fx = _mm256_sub_ps(px, _mm256_cvtepi32_ps(ix));
+            let fy = _mm256_sub_ps(py, _mm256_cvtepi32_ps(iy));
+            let fz = _mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz));
+            let base = _mm256_add_epi32(
+                ix,
+                _mm256_mullo_epi32(
+                    self.dimx,
+                    _mm256_add_epi32(iy, _mm256_mullo_epi32(self.dimy, iz)),
+                ),
+            );
+            let (d, n) = (self.data, self.len_bytes);
+            let (c000, c100) = pair::<T>(d, n, base);
+            let (c010, c110) = pair::<T>(d, n, _mm256_add_epi32(base, self.sy));
+            let (c001, c101) = pair::<T>(d, n, _mm256_add_epi32(base, self.sz));
+            let (c011, c111) = pair::<T>(
+                d,
+                n,
+                _mm256_add_epi32(base, _mm256_add_epi32(self.sy, self.sz)),
+            );
+            let c00 = lerp(c000, c100, fx);
+            let c10 = lerp(c010, c110, fx);
+            let c01 = lerp(c001, c101, fx);
+            let c11 = lerp(c011, c111, fx);
+            let c0 = lerp(c00, c10, fy);
+            let c1 = lerp(c01, c11, fy);
+            _mm256_add_ps(_mm256_mul_ps(lerp(c0, c1, fz), self.scale), self.offset)
+        }
+
+        /// Central-difference gradient at `p`, lane by lane `Grid::gradient`.
+        #[inline(always)]
+        unsafe fn gradient<T: Voxel>(&self, p: V3) -> V3 {
+            let one = _mm256_set1_ps(1.0);
+            let half = _mm256_set1_ps(0.5);
+            let [x, y, z] = p;
+            let (xp, xm) = (_mm256_add_ps(x, one), _mm256_sub_ps(x, one));
+            let (yp, ym) = (_mm256_add_ps(y, one), _mm256_sub_ps(y, one));
+            let (zp, zm) = (_mm256_add_ps(z, one), _mm256_sub_ps(z, one));
+            let gx = _mm256_sub_ps(self.sample::<T>([xp, y, z]), self.sample::<T>([xm, y, z]));
+            let gy = _mm256_sub_ps(self.sample::<T>([x, yp, z]), self.sample::<T>([x, ym, z]));
+            let gz = _mm256_sub_ps(self.sample::<T>([x, y, zp]), self.sample::<T>([x, y, zm]));
+            [
+                _mm256_mul_ps(gx, half),
+                _mm256_mul_ps(gy, half),
+                _mm256_mul_ps(gz, half),
+            ]
+        }
+    }
+
+    /// `x^n` by repeated squaring (`n` ≤ 64).
     #[inline(always)]
-    unsafe fn lerp(a: __m256, b: __m256, t: __m256) -> __m256 {
-        // `a + (b − a)·t` without fusing, as the scalar path computes it.
-        _mm256_add_ps(a, _mm256_mul_ps(_mm256_sub_ps(b, a), t))
+    unsafe fn powi(x: __m256, n: u32) -> __m256 {
+        let mut r = _mm256_set1_ps(1.0);
+        let mut b = x;
+        let mut n = n;
+        while n > 0 {
+            if n & 1 == 1 {
+                r = _mm256_mul_ps(r, b);
+            }
+            n >>= 1;
+            if n > 0 {
+                b = _mm256_mul_ps(b, b);
+            }
+        }
+        r
+    }
+
+    /// One channel of `BlinnPhong::shade` times the opacity: `min(c·k +
+    /// spec, 1)·α`, or `c·α` where the gradient is `flat`.
+    #[inline(always)]
+    unsafe fn phong(c: __m256, k: __m256, spec: __m256, flat: __m256, al: __m256) -> __m256 {
+        let s = _mm256_min_ps(
+            _mm256_add_ps(_mm256_mul_ps(c, k), spec),
+            _mm256_set1_ps(1.0),
+        );
+        _mm256_mul_ps(_mm256_blendv_ps(s, c, flat), al)
     }
 
     #[inline(always)]
@@ -291,135 +442,141 @@ mod avx2 {
         _mm256_loadu_ps(v.as_ptr())
     }
 
+    #[inline(always)]
+    unsafe fn dot(a: V3, b: V3) -> __m256 {
+        _mm256_add_ps(
+            _mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1])),
+            _mm256_mul_ps(a[2], b[2]),
+        )
+    }
+
     /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
-    /// colour and opacity to `acc`, its samples to `count`, and leaves
-    /// `alive` false for lanes that terminated early.
+    /// colour and opacity to `acc`, its samples and shaded samples to
+    /// `count`, and leaves `alive` false for lanes that terminated early.
+    /// `SKIP`: empty-space skipping (`pk.empty`); `SHADE`: Blinn–Phong
+    /// (`pk.shading`).
     ///
     /// # Safety
-    /// AVX2 and FMA present; the grid `fits`.
+    /// AVX2 and FMA present; the grid `fits`; the shading `shades`.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn march<T: Voxel>(
+    pub(super) unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool>(
         pk: &Packets<'_, T>,
         lanes: &[Option<Lane>; LANES],
         acc: &mut [Vec4; LANES],
-        count: &mut [u32; LANES],
+        count: &mut [[u32; 2]; LANES],
         alive: &mut [bool; LANES],
     ) {
         let f = pk.f;
         let (data, step, last, max) = f.grid.layout();
         let (scale, offset) = f.grid.scale_offset();
-        let len_bytes = std::mem::size_of_val(data) as i32;
-        let data = data.as_ptr() as *const u8;
-        let mut a = [[0f32; LANES]; 8];
+        let dims = f.grid.dims();
+        let vol = Vol {
+            data: data.as_ptr() as *const u8,
+            len_bytes: std::mem::size_of_val(data) as i32,
+            max: [max.x, max.y, max.z].map(|m| _mm256_set1_ps(m)),
+            last: last.map(|l| _mm256_set1_epi32(l as i32)),
+            sy: _mm256_set1_epi32(step[1] as i32),
+            sz: _mm256_set1_epi32(step[2] as i32),
+            dimx: _mm256_set1_epi32(dims[0] as i32),
+            dimy: _mm256_set1_epi32(dims[1] as i32),
+            scale: _mm256_set1_ps(scale),
+            offset: _mm256_set1_ps(offset),
+        };
+        let mut a = [[0f32; LANES]; 10];
         let (mut k, mut kend) = ([0f32; LANES], [0f32; LANES]);
+        let mut live_bits = 0i32;
         for (i, l) in lanes.iter().enumerate() {
             if let Some(l) = l {
-                a[0][i] = l.o.x;
-                a[1][i] = l.o.y;
-                a[2][i] = l.o.z;
-                a[3][i] = l.d.x;
-                a[4][i] = l.d.y;
-                a[5][i] = l.d.z;
-                a[6][i] = l.t0;
+                let v = [
+                    l.o.x, l.o.y, l.o.z, l.d.x, l.d.y, l.d.z, l.t0, l.view.x, l.view.y, l.view.z,
+                ];
+                for (c, x) in v.into_iter().enumerate() {
+                    a[c][i] = x;
+                }
                 k[i] = l.k0 as f32;
                 kend[i] = l.k_end as f32;
-                alive[i] = true;
+                live_bits |= 1 << i;
             }
         }
-        let (ox, oy, oz) = (load(a[0]), load(a[1]), load(a[2]));
-        let (dx, dy, dz) = (load(a[3]), load(a[4]), load(a[5]));
+        let o: V3 = [load(a[0]), load(a[1]), load(a[2])];
+        let d: V3 = [load(a[3]), load(a[4]), load(a[5])];
         let t0 = load(a[6]);
+        let view: V3 = [load(a[7]), load(a[8]), load(a[9])];
         let mut kv = load(k);
         let kend = load(kend);
         let st = _mm256_set1_ps(pk.st);
         let zero = _mm256_setzero_ps();
         let one = _mm256_set1_ps(1.0);
-        let (mx, my, mz) = (
-            _mm256_set1_ps(max.x),
-            _mm256_set1_ps(max.y),
-            _mm256_set1_ps(max.z),
-        );
-        let (lx, ly, lz) = (
-            _mm256_set1_epi32(last[0] as i32),
-            _mm256_set1_epi32(last[1] as i32),
-            _mm256_set1_epi32(last[2] as i32),
-        );
-        let (sy, sz) = (
-            _mm256_set1_epi32(step[1] as i32),
-            _mm256_set1_epi32(step[2] as i32),
-        );
-        let dimx = _mm256_set1_epi32(f.grid.dims()[0] as i32);
-        let dimy = _mm256_set1_epi32(f.grid.dims()[1] as i32);
-        let (vs, vo) = (_mm256_set1_ps(scale), _mm256_set1_ps(offset));
         let top = _mm256_set1_ps((crate::transfer::LUT_SIZE - 1) as f32);
         let half = _mm256_set1_ps(0.5);
         let q = pk.q.as_ptr() as *const f32;
+        let rgb = f.lut.entries().as_ptr() as *const f32;
         let (we, wa) = (
             _mm256_set1_ps(pk.weights.emission),
             _mm256_set1_ps(pk.weights.absorption),
         );
         let stop = _mm256_set1_ps(pk.stop);
-        // Blocks, for skipping.
-        let bs = f.block_size as f32;
-        let inv_bs = _mm256_set1_ps(1.0 / bs);
-        let bsv = _mm256_set1_ps(bs);
-        let [cx, cy, cz] = f.block_counts.map(|c| c as i32);
-        let (bcx, bcy, bcz) = (
-            _mm256_set1_epi32(cx - 1),
-            _mm256_set1_epi32(cy - 1),
-            _mm256_set1_epi32(cz - 1),
+        // Shading constants.
+        let bp = pk.shading.unwrap_or_default();
+        let inv_sp = [f.inv_spacing.x, f.inv_spacing.y, f.inv_spacing.z].map(|s| _mm256_set1_ps(s));
+        let min_g2 = _mm256_set1_ps(bp.min_gradient * bp.min_gradient);
+        let (amb, dif, spe) = (
+            _mm256_set1_ps(bp.ambient),
+            _mm256_set1_ps(bp.diffuse),
+            _mm256_set1_ps(bp.specular),
         );
+        let shin = bp.shininess as u32;
+        let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
+        // Blocks, for skipping.
+        let inv_bs = _mm256_set1_ps(1.0 / f.block_size as f32);
+        let bsv = _mm256_set1_ps(f.block_size as f32);
+        let [cx, cy, cz] = f.block_counts.map(|c| c as i32);
+        let bmax = [cx - 1, cy - 1, cz - 1].map(|c| _mm256_set1_epi32(c));
         let (ncx, ncy) = (_mm256_set1_epi32(cx), _mm256_set1_epi32(cy));
+        let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
         // Lane state.
-        let mut live = _mm256_castsi256_ps(_mm256_set_epi32(
-            -(alive[7] as i32),
-            -(alive[6] as i32),
-            -(alive[5] as i32),
-            -(alive[4] as i32),
-            -(alive[3] as i32),
-            -(alive[2] as i32),
-            -(alive[1] as i32),
-            -(alive[0] as i32),
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        let mut live = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(live_bits), lane_bits),
+            lane_bits,
         ));
         let (mut cr, mut cg, mut cb, mut ca) = (zero, zero, zero, zero);
         let mut cnt = _mm256_setzero_si256();
+        let mut cnt_shaded = _mm256_setzero_si256();
         loop {
             let act = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(kv, kend));
             if _mm256_movemask_ps(act) == 0 {
                 break;
             }
             let t = _mm256_add_ps(t0, _mm256_mul_ps(kv, st));
-            // Positions, clamped as `Grid::sample` clamps (max first: a NaN
-            // becomes 0).
-            let px = _mm256_min_ps(
-                _mm256_max_ps(_mm256_add_ps(ox, _mm256_mul_ps(dx, t)), zero),
-                mx,
-            );
-            let py = _mm256_min_ps(
-                _mm256_max_ps(_mm256_add_ps(oy, _mm256_mul_ps(dy, t)), zero),
-                my,
-            );
-            let pz = _mm256_min_ps(
-                _mm256_max_ps(_mm256_add_ps(oz, _mm256_mul_ps(dz, t)), zero),
-                mz,
-            );
+            let p: V3 = [
+                _mm256_add_ps(o[0], _mm256_mul_ps(d[0], t)),
+                _mm256_add_ps(o[1], _mm256_mul_ps(d[1], t)),
+                _mm256_add_ps(o[2], _mm256_mul_ps(d[2], t)),
+            ];
             let mut samp = act;
             let mut next = _mm256_add_ps(kv, one);
-            if let Some(empty) = pk.empty {
-                let bx = _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(px, inv_bs)), bcx);
-                let by = _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(py, inv_bs)), bcy);
-                let bz = _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(pz, inv_bs)), bcz);
+            if SKIP {
+                let c = vol.clamp(p);
+                let b3: [__m256i; 3] = [
+                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(c[0], inv_bs)), bmax[0]),
+                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(c[1], inv_bs)), bmax[1]),
+                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(c[2], inv_bs)), bmax[2]),
+                ];
                 let b = _mm256_add_epi32(
-                    bx,
-                    _mm256_mullo_epi32(ncx, _mm256_add_epi32(by, _mm256_mullo_epi32(ncy, bz))),
+                    b3[0],
+                    _mm256_mullo_epi32(
+                        ncx,
+                        _mm256_add_epi32(b3[1], _mm256_mullo_epi32(ncy, b3[2])),
+                    ),
                 );
-                let e = _mm256_i32gather_epi32::<4>(empty.as_ptr(), b);
+                let e = _mm256_i32gather_epi32::<4>(empty, b);
                 let skip = _mm256_and_ps(act, _mm256_castsi256_ps(e));
                 if _mm256_movemask_ps(skip) != 0 {
                     // The lane's exit from its block: the nearest far face.
                     let te = _mm256_min_ps(
-                        _mm256_min_ps(exit(ox, dx, bx, bsv), exit(oy, dy, by, bsv)),
-                        exit(oz, dz, bz, bsv),
+                        _mm256_min_ps(exit(o[0], d[0], b3[0], bsv), exit(o[1], d[1], b3[1], bsv)),
+                        exit(o[2], d[2], b3[2], bsv),
                     );
                     // First sample past the exit (a hair early: a sample
                     // still inside is tested again, never one skipped).
@@ -435,41 +592,53 @@ mod avx2 {
             if _mm256_movemask_ps(samp) == 0 {
                 continue;
             }
-            let ix = _mm256_min_epi32(_mm256_cvttps_epi32(px), lx);
-            let iy = _mm256_min_epi32(_mm256_cvttps_epi32(py), ly);
-            let iz = _mm256_min_epi32(_mm256_cvttps_epi32(pz), lz);
-            let fx = _mm256_sub_ps(px, _mm256_cvtepi32_ps(ix));
-            let fy = _mm256_sub_ps(py, _mm256_cvtepi32_ps(iy));
-            let fz = _mm256_sub_ps(pz, _mm256_cvtepi32_ps(iz));
-            let base = _mm256_add_epi32(
-                ix,
-                _mm256_mullo_epi32(dimx, _mm256_add_epi32(iy, _mm256_mullo_epi32(dimy, iz))),
-            );
-            let (c000, c100) = pair::<T>(data, len_bytes, base);
-            let (c010, c110) = pair::<T>(data, len_bytes, _mm256_add_epi32(base, sy));
-            let (c001, c101) = pair::<T>(data, len_bytes, _mm256_add_epi32(base, sz));
-            let (c011, c111) = pair::<T>(
-                data,
-                len_bytes,
-                _mm256_add_epi32(base, _mm256_add_epi32(sy, sz)),
-            );
-            let c00 = lerp(c000, c100, fx);
-            let c10 = lerp(c010, c110, fx);
-            let c01 = lerp(c001, c101, fx);
-            let c11 = lerp(c011, c111, fx);
-            let c0 = lerp(c00, c10, fy);
-            let c1 = lerp(c01, c11, fy);
-            let v = _mm256_add_ps(_mm256_mul_ps(lerp(c0, c1, fz), vs), vo);
+            let v = vol.sample::<T>(p);
             // `Lut::index`: below 0 (or NaN) nothing; the lane's entry 0
             // is read and masked out.
-            let valid = _mm256_and_ps(samp, _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero));
+            let mut valid = _mm256_and_ps(samp, _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero));
             let x = _mm256_add_ps(_mm256_mul_ps(_mm256_min_ps(v, one), top), half);
             let idx = _mm256_and_si256(_mm256_cvttps_epi32(x), _mm256_castps_si256(valid));
             let i4 = _mm256_slli_epi32::<2>(idx);
-            let er = _mm256_and_ps(_mm256_i32gather_ps::<4>(q, i4), valid);
-            let eg = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(1), i4), valid);
-            let eb = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(2), i4), valid);
-            let al = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(3), i4), valid);
+            let al = _mm256_i32gather_ps::<4>(q.add(3), i4);
+            let (er, eg, eb);
+            if SHADE {
+                // Transparent samples are culled before shading.
+                valid = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_GT_OQ>(al, zero));
+                if _mm256_movemask_ps(valid) == 0 {
+                    cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(samp));
+                    continue;
+                }
+                let c = [
+                    _mm256_i32gather_ps::<4>(rgb, i4),
+                    _mm256_i32gather_ps::<4>(rgb.add(1), i4),
+                    _mm256_i32gather_ps::<4>(rgb.add(2), i4),
+                ];
+                let g = vol.gradient::<T>(p);
+                let flat = _mm256_cmp_ps::<_CMP_LT_OQ>(dot(g, g), min_g2);
+                let gw: V3 = [
+                    _mm256_mul_ps(g[0], inv_sp[0]),
+                    _mm256_mul_ps(g[1], inv_sp[1]),
+                    _mm256_mul_ps(g[2], inv_sp[2]),
+                ];
+                let inv_len = _mm256_div_ps(one, _mm256_sqrt_ps(dot(gw, gw)));
+                let n: V3 = [
+                    _mm256_mul_ps(gw[0], inv_len),
+                    _mm256_mul_ps(gw[1], inv_len),
+                    _mm256_mul_ps(gw[2], inv_len),
+                ];
+                let ndl = _mm256_and_ps(dot(n, view), abs_mask);
+                let spec = _mm256_mul_ps(spe, powi(ndl, shin));
+                let k = _mm256_add_ps(amb, _mm256_mul_ps(dif, ndl));
+                er = _mm256_and_ps(phong(c[0], k, spec, flat, al), valid);
+                eg = _mm256_and_ps(phong(c[1], k, spec, flat, al), valid);
+                eb = _mm256_and_ps(phong(c[2], k, spec, flat, al), valid);
+                cnt_shaded = _mm256_sub_epi32(cnt_shaded, _mm256_castps_si256(valid));
+            } else {
+                er = _mm256_and_ps(_mm256_i32gather_ps::<4>(q, i4), valid);
+                eg = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(1), i4), valid);
+                eb = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(2), i4), valid);
+            }
+            let al = _mm256_and_ps(al, valid);
             // Front to back (`over_front` with the optical model's weights).
             let tr = _mm256_sub_ps(one, ca);
             cr = _mm256_add_ps(cr, _mm256_mul_ps(_mm256_mul_ps(er, we), tr));
@@ -477,7 +646,7 @@ mod avx2 {
             cb = _mm256_add_ps(cb, _mm256_mul_ps(_mm256_mul_ps(eb, we), tr));
             ca = _mm256_add_ps(ca, _mm256_mul_ps(_mm256_mul_ps(al, wa), tr));
             cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(samp));
-            let done = _mm256_and_ps(samp, _mm256_cmp_ps::<_CMP_GE_OQ>(ca, stop));
+            let done = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_GE_OQ>(ca, stop));
             live = _mm256_andnot_ps(done, live);
         }
         let mut out = [[0f32; LANES]; 4];
@@ -485,12 +654,13 @@ mod avx2 {
         _mm256_storeu_ps(out[1].as_mut_ptr(), cg);
         _mm256_storeu_ps(out[2].as_mut_ptr(), cb);
         _mm256_storeu_ps(out[3].as_mut_ptr(), ca);
-        let mut c = [0i32; LANES];
-        _mm256_storeu_si256(c.as_mut_ptr() as *mut __m256i, cnt);
+        let mut c = [[0i32; LANES]; 2];
+        _mm256_storeu_si256(c[0].as_mut_ptr() as *mut __m256i, cnt);
+        _mm256_storeu_si256(c[1].as_mut_ptr() as *mut __m256i, cnt_shaded);
         let l = _mm256_movemask_ps(live);
         for i in 0..LANES {
             acc[i] = Vec4::new(out[0][i], out[1][i], out[2][i], out[3][i]);
-            count[i] = c[i] as u32;
+            count[i] = [c[0][i] as u32, c[1][i] as u32];
             alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
         }
     }
