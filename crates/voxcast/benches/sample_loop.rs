@@ -231,8 +231,17 @@ fn ceiling(c: &mut Criterion) {
     g.throughput(Throughput::Elements(bare_samples));
     g.bench_function("bare_loop", |b| b.iter(|| black_box(bare())));
     g.throughput(Throughput::Elements(stats.samples));
+    // The renderer's own choice (SIMD packets where the CPU has AVX2),
+    // and its scalar loop.
     g.bench_function("renderer_uniform", |b| {
         b.iter(|| renderer.render(&tf, &camera, &params, &|_, _| {}).unwrap())
+    });
+    let scalar = RenderParams {
+        simd: voxcast::render::Simd::Scalar,
+        ..params.clone()
+    };
+    g.bench_function("renderer_uniform_scalar", |b| {
+        b.iter(|| renderer.render(&tf, &camera, &scalar, &|_, _| {}).unwrap())
     });
     g.finish();
 }

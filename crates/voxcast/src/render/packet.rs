@@ -437,6 +437,31 @@ mod avx2 {
         _mm256_mul_ps(_mm256_blendv_ps(s, c, flat), al)
     }
 
+    /// The four channels of rows `i4 / 4` of a table of `[f32; 4]` rows
+    /// (`i4`: float offsets), one 128-bit load per lane and a transpose.
+    #[inline(always)]
+    unsafe fn rows(table: *const f32, i4: __m256i) -> [__m256; 4] {
+        let mut ix = [0i32; LANES];
+        _mm256_storeu_si256(ix.as_mut_ptr() as *mut __m256i, i4);
+        let r = [0, 1, 2, 3, 4, 5, 6, 7];
+        let [r0, r1, r2, r3, r4, r5, r6, r7] =
+            r.map(|i: usize| table.add(ix[i] as usize) as *const __m128);
+        let a0 = _mm256_set_m128(_mm_loadu_ps(r4 as _), _mm_loadu_ps(r0 as _));
+        let a1 = _mm256_set_m128(_mm_loadu_ps(r5 as _), _mm_loadu_ps(r1 as _));
+        let a2 = _mm256_set_m128(_mm_loadu_ps(r6 as _), _mm_loadu_ps(r2 as _));
+        let a3 = _mm256_set_m128(_mm_loadu_ps(r7 as _), _mm_loadu_ps(r3 as _));
+        let t0 = _mm256_unpacklo_ps(a0, a1);
+        let t1 = _mm256_unpacklo_ps(a2, a3);
+        let t2 = _mm256_unpackhi_ps(a0, a1);
+        let t3 = _mm256_unpackhi_ps(a2, a3);
+        [
+            _mm256_shuffle_ps::<0x44>(t0, t1),
+            _mm256_shuffle_ps::<0xEE>(t0, t1),
+            _mm256_shuffle_ps::<0x44>(t2, t3),
+            _mm256_shuffle_ps::<0xEE>(t2, t3),
+        ]
+    }
+
     #[inline(always)]
     unsafe fn load(v: [f32; LANES]) -> __m256 {
         _mm256_loadu_ps(v.as_ptr())
@@ -599,7 +624,9 @@ mod avx2 {
             let x = _mm256_add_ps(_mm256_mul_ps(_mm256_min_ps(v, one), top), half);
             let idx = _mm256_and_si256(_mm256_cvttps_epi32(x), _mm256_castps_si256(valid));
             let i4 = _mm256_slli_epi32::<2>(idx);
-            let al = _mm256_i32gather_ps::<4>(q.add(3), i4);
+            // The eight table rows: loaded whole and transposed (cheaper
+            // than four gathers).
+            let [qr, qg, qb, al] = rows(q, i4);
             let (er, eg, eb);
             if SHADE {
                 // Transparent samples are culled before shading.
@@ -608,11 +635,8 @@ mod avx2 {
                     cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(samp));
                     continue;
                 }
-                let c = [
-                    _mm256_i32gather_ps::<4>(rgb, i4),
-                    _mm256_i32gather_ps::<4>(rgb.add(1), i4),
-                    _mm256_i32gather_ps::<4>(rgb.add(2), i4),
-                ];
+                let [r, g, b, _] = rows(rgb, i4);
+                let c = [r, g, b];
                 let g = vol.gradient::<T>(p);
                 let flat = _mm256_cmp_ps::<_CMP_LT_OQ>(dot(g, g), min_g2);
                 let gw: V3 = [
@@ -634,9 +658,9 @@ mod avx2 {
                 eb = _mm256_and_ps(phong(c[2], k, spec, flat, al), valid);
                 cnt_shaded = _mm256_sub_epi32(cnt_shaded, _mm256_castps_si256(valid));
             } else {
-                er = _mm256_and_ps(_mm256_i32gather_ps::<4>(q, i4), valid);
-                eg = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(1), i4), valid);
-                eb = _mm256_and_ps(_mm256_i32gather_ps::<4>(q.add(2), i4), valid);
+                er = _mm256_and_ps(qr, valid);
+                eg = _mm256_and_ps(qg, valid);
+                eb = _mm256_and_ps(qb, valid);
             }
             let al = _mm256_and_ps(al, valid);
             // Front to back (`over_front` with the optical model's weights).
