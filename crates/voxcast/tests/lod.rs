@@ -131,7 +131,7 @@ fn decimation_takes_fewer_samples_and_stays_close() {
     assert!(pg >= 38.0, "lod 1,2,4: {pg} dB (uniform {pu} dB)");
     // The defaults (3, 4, 8) decimate harder: under half the samples; on
     // this small cloud seen at 96×80 the error is larger than at 512² on
-    // the 400×400×60 one (≥ 41 dB there, docs/README-clouds.md).
+    // the 400×400×60 one (≥ 41 dB there, docs/clouds.md).
     let (l, sl) = draw(&r, &params(Method::Lod));
     let pl = metrics::psnr(&ref_img, &l).unwrap();
     assert!(

@@ -16,7 +16,7 @@
 //!   (even, default 8).
 //!
 //! The defaults were chosen on the 400×400×60 cumulus and the cloud.vdb
-//! sample at 512² (docs/README-clouds.md): 2.2–2.65× faster than `uniform`
+//! sample at 512² (docs/clouds.md): 2.2–2.65× faster than `uniform`
 //! at step 0.5 with PSNR ≥ 39 dB against the bench's reference. Spacings
 //! 1, 2, 4 are gentler (≈ 1.5×, ≈ 49 dB).
 //!

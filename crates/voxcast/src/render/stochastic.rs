@@ -250,7 +250,7 @@ pub(super) const MAX_LEVEL: u8 = 5;
 /// Exponent of the `importance` pdf's extinction term: density
 /// `∝ σ_max^GAMMA` (1 would be proportional to the extinction bound; on the
 /// teapot and the lung CT 0.35 gave the best time to quality, see
-/// the sweep of the exponents in the README, "Time to quality and equal time").
+/// the sweep of the exponents in docs/monte-carlo.md, "Time to quality and equal time").
 pub(super) const GAMMA: f32 = 0.35;
 /// Exponent of its transmittance term: density `∝ T̂^BETA`, with `T̂ =
 /// exp(−∫σ̄)` the light expected to reach a block (σ̄ the blocks' mean
@@ -258,7 +258,7 @@ pub(super) const GAMMA: f32 = 0.35;
 /// dense block gets more light than `T̂` says, and then its samples behind
 /// are too sparse, which costs variance (never bias); a small exponent
 /// keeps that cheap. 0.3 was the best of 0.1–0.5 on the teapot and the lung
-/// CT (docs/README-mc3.md); the lower bound `exp(−∫σ_min)` with exponent 1
+/// CT (docs/monte-carlo.md); the lower bound `exp(−∫σ_min)` with exponent 1
 /// that this replaces saved fewer samples.
 pub(super) const BETA: f32 = 0.3;
 
