@@ -235,17 +235,14 @@ fn packets_give_the_scalar_pixels() {
                             ss.gradient_interpolations as f64,
                             sc.gradient_interpolations as f64,
                         );
-                        assert!((a - b).abs() <= 0.02 * b, "{what}: gradients {a} vs {b}");
+                        assert!((a - b).abs() <= 1e-3 * b, "{what}: gradients {a} vs {b}");
                         assert_eq!(b > 0.0, shading, "{what}: gradients {b}");
-                        // Samples keep their meaning: equal without
-                        // skipping; with it, lanes skip sample by sample
-                        // where the scalar march skips block by block.
+                        // Samples keep their meaning: the same samples
+                        // (lanes skip sample by sample where the scalar
+                        // march skips block by block, by the same rule on
+                        // faces; a rounding at a face may differ).
                         let (a, b) = (ss.samples as f64, sc.samples as f64);
-                        if skip_empty {
-                            assert!((a - b).abs() <= 0.02 * b, "{what}: samples {a} vs {b}");
-                        } else {
-                            assert_eq!(a, b, "{what}: samples");
-                        }
+                        assert!((a - b).abs() <= 1e-3 * b, "{what}: samples {a} vs {b}");
                         terminated += sc.early_terminated;
                     }
                 }
@@ -255,5 +252,64 @@ fn packets_give_the_scalar_pixels() {
             terminated > 0,
             "no ray terminated early: the test lost its teeth"
         );
+    }
+}
+
+/// One-voxel axes (a single slice, a single row) and a two-voxel x axis:
+/// the packets' neighbour fetches (the u8 z-paired copy, the +x pair) must
+/// read the same corners as the scalar loop there. (This found the scalar
+/// block walk ending at a single slice's mid-plane when skipping: the far
+/// half of the slab was never sampled.)
+#[test]
+fn packets_handle_thin_volumes() {
+    use voxcast::volume::VoxelData;
+    let tf = TransferFunction {
+        color: vec![[0.0, 1.0, 0.5, 0.2], [1.0, 0.3, 0.6, 1.0]],
+        opacity: vec![[0.0, 0.0], [1.0, 0.8]],
+        window: None,
+    };
+    for dims in [[9usize, 7, 1], [9, 1, 5], [2, 6, 4], [11, 3, 2]] {
+        let n = dims[0] * dims[1] * dims[2];
+        let v: Vec<f32> = (0..n).map(|i| ((i * 37) % 23) as f32 / 22.0).collect();
+        let s = glam::Vec3::ONE;
+        for data in [
+            VoxelData::U8(v.iter().map(|x| (x * 255.0) as u8).collect()),
+            VoxelData::U16(v.iter().map(|x| (x * 4000.0) as u16).collect()),
+            VoxelData::F32(v.clone()),
+        ] {
+            let vol = voxcast::Volume::new(dims, s, glam::Vec3::ZERO, data).unwrap();
+            let st = vol.stats();
+            let r = Renderer::new(&vol, [st.min, st.max]).unwrap();
+            for (elevation, shading, skip_empty) in [
+                (20.0, false, true),
+                (20.0, false, false),
+                (80.0, true, true),
+                (-35.0, false, true),
+            ] {
+                let cam = CameraParams {
+                    azimuth: 30.0,
+                    elevation,
+                    ..Default::default()
+                };
+                let mut p = RenderParams {
+                    width: 33,
+                    height: 17,
+                    shading,
+                    skip_empty,
+                    ..Default::default()
+                };
+                let (a, sa) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+                p.simd = Simd::Scalar;
+                let (b, sb) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+                let d = max_diff(&a, &b);
+                let what = format!(
+                    "{dims:?} {:?} elevation {elevation} skip {skip_empty}",
+                    vol.scalar_type()
+                );
+                assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
+                assert!(sb.samples > 0, "{what}: nothing sampled");
+                assert_eq!(sa.rays_hit, sb.rays_hit, "{what}");
+            }
+        }
     }
 }

@@ -7,7 +7,9 @@ use common::{max_diff, no_progress};
 
 use glam::Vec3;
 use voxcast::camera::{CameraParams, Projection};
-use voxcast::render::{AdaptiveParams, Method, MethodSpec, RenderParams, RenderStats, Renderer};
+use voxcast::render::{
+    AdaptiveParams, Method, MethodSpec, RenderParams, RenderStats, Renderer, Simd,
+};
 use voxcast::transfer::TransferFunction;
 use voxcast::{metrics, Image, Volume, VoxelData};
 
@@ -107,6 +109,9 @@ fn adaptive_with_a_forced_constant_step_is_uniform() {
     let mut p = RenderParams {
         width: 80,
         height: 64,
+        // The scalar march, which adaptive's shares bit for bit (the SIMD
+        // packets are held to it in tests/engine.rs).
+        simd: Simd::Scalar,
         ..Default::default()
     };
     let (uniform, su) = draw(&vol, &tf, &view(), &p);

@@ -444,6 +444,9 @@ pub struct Renderer<'v> {
     derived: std::sync::Mutex<Vec<(usize, Arc<Derived>)>>,
     /// Opaque geometry rays stop at.
     geometry: Option<Arc<crate::geometry::Geometry>>,
+    /// For u8 volumes, the SIMD packets' layout (see [`packet::z_pairs`]),
+    /// built on the first render that uses it.
+    z_pairs: std::sync::OnceLock<Vec<u16>>,
 }
 
 /// What a block size derives from the volume: the block grid, and the
@@ -513,6 +516,7 @@ impl<'v> Renderer<'v> {
             volume,
             window,
             derived: std::sync::Mutex::new(Vec::new()),
+            z_pairs: std::sync::OnceLock::new(),
             geometry: None,
         };
         r.derived(blocks::DEFAULT_BLOCK);
@@ -646,7 +650,23 @@ impl<'v> Renderer<'v> {
                 )
             })
         });
+        // The packets' u8 layout, where they will run.
+        let z_pairs = match volume.data() {
+            crate::volume::VoxelData::U8(v)
+                if matches!(params.method, Method::Uniform | Method::Jitter)
+                    && params.simd == Simd::Auto
+                    && packet::available() =>
+            {
+                Some(
+                    self.z_pairs
+                        .get_or_init(|| packet::z_pairs(v, volume.dims()))
+                        .as_slice(),
+                )
+            }
+            _ => None,
+        };
         let job = Job {
+            z_pairs,
             pdf: pdf.as_slice(),
             volume,
             lut: Lut::new(tf, params.step),
@@ -674,6 +694,8 @@ impl<'v> Renderer<'v> {
 }
 
 struct Job<'a> {
+    /// The packets' u8 layout (u8 volumes, where packets may run).
+    z_pairs: Option<&'a [u16]>,
     pdf: &'a [stochastic::PdfBlock],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
@@ -854,6 +876,7 @@ impl Job<'_> {
             || self.surface.is_some()
             || !packet::available()
             || !packet::fits(f.grid)
+            || (T::KIND == crate::volume::VoxelKind::U8 && self.z_pairs.is_none())
         {
             return None;
         }
@@ -869,6 +892,7 @@ impl Job<'_> {
             jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
             empty: empty.as_deref(),
             shading,
+            z_pairs: self.z_pairs.unwrap_or(&[]),
         };
         let passes = if p.method.is_stochastic() || p.jitter {
             p.spp

@@ -60,6 +60,24 @@ pub(super) fn fits<T: Voxel>(g: &crate::volume::Grid<'_, T>) -> bool {
     step[0] == 1 && bytes >= 4 && bytes < (i32::MAX as usize) / 2
 }
 
+/// The u8 layout the packets fetch from: per voxel `v(x, y, z)` and
+/// `v(x, y, z + 1)` in one `u16` (low byte first; the last slice pairs with
+/// itself), so one 32-bit gather at voxel `(x, y, z)` reads the four
+/// corners `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)` of a
+/// trilinear fetch — two gathers per fetch instead of four. Twice the
+/// volume's bytes, built once per renderer.
+pub(super) fn z_pairs(v: &[u8], dims: [usize; 3]) -> Vec<u16> {
+    let slice = dims[0] * dims[1];
+    let last = slice * (dims[2] - 1);
+    v.iter()
+        .enumerate()
+        .map(|(i, &a)| {
+            let b = if i < last { v[i + slice] } else { a };
+            a as u16 | (b as u16) << 8
+        })
+        .collect()
+}
+
 /// What every packet of a render shares.
 pub(super) struct Packets<'a, T> {
     pub f: &'a Frame<'a, T>,
@@ -77,6 +95,8 @@ pub(super) struct Packets<'a, T> {
     /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
     /// flat colour.
     pub shading: Option<BlinnPhong>,
+    /// For u8 grids, the grid as [`z_pairs`] (empty for other types).
+    pub z_pairs: &'a [u16],
 }
 
 /// Whether the packets can shade with `bp`: the specular power is taken by
@@ -220,8 +240,13 @@ impl<T: Voxel> Packets<'_, T> {
     fn last(&self, l: &Lane, k: u32, c: &mut Vec3, a: &mut f32, n: &mut Counters) -> bool {
         let f = self.f;
         let t = l.t0 + k as f32 * self.st;
-        n.samples += 1;
         let p = l.o + l.d * t;
+        // Skipped, and not counted, in an empty block (as the block walk
+        // does).
+        if self.empty.is_some() && f.in_empty_block(p.max(Vec3::ZERO)) {
+            return false;
+        }
+        n.samples += 1;
         let sample = match self.shading {
             Some(bp) => evaluate_premul(f, &Phong(bp), self.q, p, l.view, n),
             None => evaluate_premul(f, &Flat, self.q, p, l.view, n),
@@ -322,12 +347,31 @@ mod avx2 {
         _mm256_blendv_ps(te, _mm256_set1_ps(f32::INFINITY), flat)
     }
 
+    /// The block of coordinate `c` (≥ 0) on one axis for a ray of
+    /// direction `d`: `⌊c/B⌋`, or `⌈c/B⌉ − 1` going down (so a sample on a
+    /// face belongs to the block the ray is leaving, as in `BlockWalker`),
+    /// clamped to `0..=top`.
+    #[inline(always)]
+    unsafe fn block(c: __m256, d: __m256, inv_bs: __m256, top: __m256i) -> __m256i {
+        let q = _mm256_mul_ps(c, inv_bs);
+        let down = _mm256_cmp_ps::<_CMP_LT_OQ>(d, _mm256_setzero_ps());
+        let b = _mm256_blendv_ps(
+            _mm256_floor_ps(q),
+            _mm256_sub_ps(_mm256_ceil_ps(q), _mm256_set1_ps(1.0)),
+            down,
+        );
+        let b = _mm256_max_epi32(_mm256_cvttps_epi32(b), _mm256_setzero_si256());
+        _mm256_min_epi32(b, top)
+    }
+
     /// `[x, y, z]` of three registers.
     type V3 = [__m256; 3];
 
     /// The grid as the lanes read it (see `Grid::sample`).
     struct Vol {
         data: *const u8,
+        /// u8 grids: the z-paired copy (`super::z_pairs`).
+        zp: *const u8,
         len_bytes: i32,
         max: V3,
         last: [__m256i; 3],
@@ -370,15 +414,34 @@ mod avx2 {
                     _mm256_add_epi32(iy, _mm256_mullo_epi32(self.dimy, iz)),
                 ),
             );
-            let (d, n) = (self.data, self.len_bytes);
-            let (c000, c100) = pair::<T>(d, n, base);
-            let (c010, c110) = pair::<T>(d, n, _mm256_add_epi32(base, self.sy));
-            let (c001, c101) = pair::<T>(d, n, _mm256_add_epi32(base, self.sz));
-            let (c011, c111) = pair::<T>(
-                d,
-                n,
-                _mm256_add_epi32(base, _mm256_add_epi32(self.sy, self.sz)),
-            );
+            let (c000, c100, c010, c110, c001, c101, c011, c111);
+            if T::KIND == VoxelKind::U8 {
+                // Two gathers: rows y and y + 1 of the z-paired copy.
+                let m = _mm256_set1_epi32(0xff);
+                let g0 = _mm256_i32gather_epi32::<2>(self.zp as *const i32, base);
+                let g1 = _mm256_i32gather_epi32::<2>(
+                    self.zp as *const i32,
+                    _mm256_add_epi32(base, self.sy),
+                );
+                c000 = _mm256_cvtepi32_ps(_mm256_and_si256(g0, m));
+                c001 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(g0), m));
+                c100 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<16>(g0), m));
+                c101 = _mm256_cvtepi32_ps(_mm256_srli_epi32::<24>(g0));
+                c010 = _mm256_cvtepi32_ps(_mm256_and_si256(g1, m));
+                c011 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<8>(g1), m));
+                c110 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32::<16>(g1), m));
+                c111 = _mm256_cvtepi32_ps(_mm256_srli_epi32::<24>(g1));
+            } else {
+                let (d, n) = (self.data, self.len_bytes);
+                (c000, c100) = pair::<T>(d, n, base);
+                (c010, c110) = pair::<T>(d, n, _mm256_add_epi32(base, self.sy));
+                (c001, c101) = pair::<T>(d, n, _mm256_add_epi32(base, self.sz));
+                (c011, c111) = pair::<T>(
+                    d,
+                    n,
+                    _mm256_add_epi32(base, _mm256_add_epi32(self.sy, self.sz)),
+                );
+            }
             let c00 = lerp(c000, c100, fx);
             let c10 = lerp(c010, c110, fx);
             let c01 = lerp(c001, c101, fx);
@@ -439,17 +502,29 @@ mod avx2 {
 
     /// The four channels of rows `i4 / 4` of a table of `[f32; 4]` rows
     /// (`i4`: float offsets), one 128-bit load per lane and a transpose.
+    /// (No closures in these helpers: a closure does not inherit the
+    /// caller's AVX2, so its intrinsics would not inline.)
     #[inline(always)]
     unsafe fn rows(table: *const f32, i4: __m256i) -> [__m256; 4] {
         let mut ix = [0i32; LANES];
         _mm256_storeu_si256(ix.as_mut_ptr() as *mut __m256i, i4);
-        let r = [0, 1, 2, 3, 4, 5, 6, 7];
-        let [r0, r1, r2, r3, r4, r5, r6, r7] =
-            r.map(|i: usize| table.add(ix[i] as usize) as *const __m128);
-        let a0 = _mm256_set_m128(_mm_loadu_ps(r4 as _), _mm_loadu_ps(r0 as _));
-        let a1 = _mm256_set_m128(_mm_loadu_ps(r5 as _), _mm_loadu_ps(r1 as _));
-        let a2 = _mm256_set_m128(_mm_loadu_ps(r6 as _), _mm_loadu_ps(r2 as _));
-        let a3 = _mm256_set_m128(_mm_loadu_ps(r7 as _), _mm_loadu_ps(r3 as _));
+        // (No closures here: they would not inherit the caller's AVX2.)
+        let a0 = _mm256_set_m128(
+            _mm_loadu_ps(table.add(ix[4] as usize)),
+            _mm_loadu_ps(table.add(ix[0] as usize)),
+        );
+        let a1 = _mm256_set_m128(
+            _mm_loadu_ps(table.add(ix[5] as usize)),
+            _mm_loadu_ps(table.add(ix[1] as usize)),
+        );
+        let a2 = _mm256_set_m128(
+            _mm_loadu_ps(table.add(ix[6] as usize)),
+            _mm_loadu_ps(table.add(ix[2] as usize)),
+        );
+        let a3 = _mm256_set_m128(
+            _mm_loadu_ps(table.add(ix[7] as usize)),
+            _mm_loadu_ps(table.add(ix[3] as usize)),
+        );
         let t0 = _mm256_unpacklo_ps(a0, a1);
         let t1 = _mm256_unpacklo_ps(a2, a3);
         let t2 = _mm256_unpackhi_ps(a0, a1);
@@ -482,7 +557,8 @@ mod avx2 {
     /// (`pk.shading`).
     ///
     /// # Safety
-    /// AVX2 and FMA present; the grid `fits`; the shading `shades`.
+    /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a
+    /// u8 grid, `pk.z_pairs` is its z-paired copy.
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool>(
         pk: &Packets<'_, T>,
@@ -497,9 +573,18 @@ mod avx2 {
         let dims = f.grid.dims();
         let vol = Vol {
             data: data.as_ptr() as *const u8,
+            zp: pk.z_pairs.as_ptr() as *const u8,
             len_bytes: std::mem::size_of_val(data) as i32,
-            max: [max.x, max.y, max.z].map(|m| _mm256_set1_ps(m)),
-            last: last.map(|l| _mm256_set1_epi32(l as i32)),
+            max: [
+                _mm256_set1_ps(max.x),
+                _mm256_set1_ps(max.y),
+                _mm256_set1_ps(max.z),
+            ],
+            last: [
+                _mm256_set1_epi32(last[0] as i32),
+                _mm256_set1_epi32(last[1] as i32),
+                _mm256_set1_epi32(last[2] as i32),
+            ],
             sy: _mm256_set1_epi32(step[1] as i32),
             sz: _mm256_set1_epi32(step[2] as i32),
             dimx: _mm256_set1_epi32(dims[0] as i32),
@@ -543,7 +628,11 @@ mod avx2 {
         let stop = _mm256_set1_ps(pk.stop);
         // Shading constants.
         let bp = pk.shading.unwrap_or_default();
-        let inv_sp = [f.inv_spacing.x, f.inv_spacing.y, f.inv_spacing.z].map(|s| _mm256_set1_ps(s));
+        let inv_sp = [
+            _mm256_set1_ps(f.inv_spacing.x),
+            _mm256_set1_ps(f.inv_spacing.y),
+            _mm256_set1_ps(f.inv_spacing.z),
+        ];
         let min_g2 = _mm256_set1_ps(bp.min_gradient * bp.min_gradient);
         let (amb, dif, spe) = (
             _mm256_set1_ps(bp.ambient),
@@ -555,8 +644,12 @@ mod avx2 {
         // Blocks, for skipping.
         let inv_bs = _mm256_set1_ps(1.0 / f.block_size as f32);
         let bsv = _mm256_set1_ps(f.block_size as f32);
-        let [cx, cy, cz] = f.block_counts.map(|c| c as i32);
-        let bmax = [cx - 1, cy - 1, cz - 1].map(|c| _mm256_set1_epi32(c));
+        let [cx, cy, cz] = [0, 1, 2].map(|a| f.block_counts[a] as i32);
+        let bmax = [
+            _mm256_set1_epi32(cx - 1),
+            _mm256_set1_epi32(cy - 1),
+            _mm256_set1_epi32(cz - 1),
+        ];
         let (ncx, ncy) = (_mm256_set1_epi32(cx), _mm256_set1_epi32(cy));
         let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
         // Lane state.
@@ -583,10 +676,12 @@ mod avx2 {
             let mut next = _mm256_add_ps(kv, one);
             if SKIP {
                 let c = vol.clamp(p);
+                // The block walk's rule: on a face, a ray going down
+                // belongs to the block below.
                 let b3: [__m256i; 3] = [
-                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(c[0], inv_bs)), bmax[0]),
-                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(c[1], inv_bs)), bmax[1]),
-                    _mm256_min_epi32(_mm256_cvttps_epi32(_mm256_mul_ps(c[2], inv_bs)), bmax[2]),
+                    block(c[0], d[0], inv_bs, bmax[0]),
+                    block(c[1], d[1], inv_bs, bmax[1]),
+                    block(c[2], d[2], inv_bs, bmax[2]),
                 ];
                 let b = _mm256_add_epi32(
                     b3[0],

@@ -116,7 +116,8 @@ impl<T: Voxel> Marcher<T> for Stratified<'_> {
             seg.walk.1,
             f.block_size,
             f.block_counts,
-        );
+        )
+        .staying();
         for (ta, tb, b) in walker {
             if f.skip_empty && f.empty[b] {
                 continue;
@@ -217,7 +218,8 @@ impl<T: Voxel> Marcher<T> for Importance<'_> {
             seg.walk.1,
             f.block_size,
             f.block_counts,
-        );
+        )
+        .staying();
         let stretches = walker.map(|(ta, tb, b)| {
             let blk = self.pdf[b];
             let j = if blk.level < 0.0 {

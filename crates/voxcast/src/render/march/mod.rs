@@ -48,9 +48,19 @@ pub struct BlockWalker {
     step: [i64; 3],
     t_max: [f32; 3],
     t_delta: [f32; 3],
+    /// Stay in the edge block past the grid (see `next`).
+    stay: bool,
 }
 
 impl BlockWalker {
+    /// A walk that runs on to `t_out` in the edge block when the ray
+    /// leaves the block range on one axis but not the sample box (a
+    /// one-voxel axis): the ray casters' walks.
+    pub fn staying(mut self) -> BlockWalker {
+        self.stay = true;
+        self
+    }
+
     /// Starts at `t_in` on the ray `o + d·t` (voxel coordinates).
     pub fn new(
         o: Vec3,
@@ -95,6 +105,7 @@ impl BlockWalker {
             step,
             t_max,
             t_delta,
+            stay: false,
         }
     }
 }
@@ -122,8 +133,20 @@ impl Iterator for BlockWalker {
         self.t_max[a] += self.t_delta[a];
         self.block[a] += self.step[a];
         if self.block[a] < 0 || self.block[a] >= self.counts[a] {
-            // Left the grid: this is the last stretch.
-            self.t = self.t_out;
+            // Past the grid's last block on this axis. The ray may still be
+            // inside the sample box — a one-voxel axis has a box half a
+            // voxel thick on either side of its only slice, beyond the block
+            // range — and samples there are clamped into this edge block.
+            // The ray casters' walks (`staying`) stay in it, with no more
+            // crossings on this axis (ending the walk here lost the far half
+            // of a single slice); the others end (the majorant walks of the
+            // physically based methods, which the GPU mirrors).
+            if self.stay {
+                self.block[a] -= self.step[a];
+                self.t_max[a] = f32::INFINITY;
+            } else {
+                self.t = self.t_out;
+            }
         }
         Some((enter, t_exit, index))
     }

@@ -191,7 +191,8 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
             seg.t_out,
             f.block_size,
             f.block_counts,
-        );
+        )
+        .staying();
         // Past `t_stop` every block is empty: the walk ends there once no
         // sample waits for its stretch.
         let t_stop = seg.walk.1;

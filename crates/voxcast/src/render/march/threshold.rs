@@ -34,7 +34,8 @@ impl<T: Voxel> Marcher<T> for Threshold<'_> {
             seg.t_out,
             f.block_size,
             f.block_counts,
-        );
+        )
+        .staying();
         let t_stop = seg.walk.1;
         let mut t = seg.t0;
         // Samples since the last skip (grouped reuse counts from there).
