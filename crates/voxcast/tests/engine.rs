@@ -14,17 +14,9 @@ use voxcast::Image;
 
 /// The ray-casting methods (the physically based ones have their own
 /// integrator and tests).
-const METHODS: [Method; 9] = [
-    Method::Uniform,
-    Method::Adaptive,
-    Method::AdaptiveMax,
-    Method::Threshold,
-    Method::Jitter,
-    Method::Stratified,
-    Method::Mc,
-    Method::Importance,
-    Method::Lod,
-];
+fn methods() -> impl Iterator<Item = Method> {
+    Method::ALL.into_iter().filter(|m| !m.is_physical())
+}
 
 fn scene() -> (voxcast::Volume, TransferFunction) {
     let vol = voxcast::builtin::open("demo").unwrap();
@@ -54,7 +46,7 @@ fn every_method_composites_the_same_in_both_orders() {
     let (vol, tf) = scene();
     let s = vol.stats();
     let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
-    for method in METHODS {
+    for method in methods() {
         for grouped in [false, true] {
             for shading in [false, true] {
                 let mut p = RenderParams {
@@ -101,7 +93,7 @@ fn optical_models_keep_only_their_terms() {
     let (vol, tf) = scene();
     let s = vol.stats();
     let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
-    for method in METHODS {
+    for method in methods() {
         let mut p = RenderParams {
             width: 40,
             height: 32,

@@ -39,6 +39,17 @@ impl Weights {
     }
 }
 
+/// The opacity at which early ray termination stops a ray: `ert`, or ∞
+/// when it is off (`ert` = 1).
+#[inline]
+pub(super) fn ert_stop(ert: f32) -> f32 {
+    if ert < 1.0 {
+        ert
+    } else {
+        f32::INFINITY
+    }
+}
+
 /// A compositing order: makes the compositor of each ray (which may
 /// borrow the tile's scratch buffer).
 pub(super) trait Order: Sync {
@@ -58,7 +69,7 @@ impl Order for FrontToBack {
         Front {
             c: Vec3::ZERO,
             a: 0.0,
-            stop: if ert < 1.0 { ert } else { f32::INFINITY },
+            stop: ert_stop(ert),
             w,
         }
     }

@@ -650,23 +650,8 @@ impl<'v> Renderer<'v> {
                 )
             })
         });
-        // The packets' u8 layout, where they will run.
-        let z_pairs = match volume.data() {
-            crate::volume::VoxelData::U8(v)
-                if matches!(params.method, Method::Uniform | Method::Jitter)
-                    && params.simd == Simd::Auto
-                    && packet::available() =>
-            {
-                Some(
-                    self.z_pairs
-                        .get_or_init(|| packet::z_pairs(v, volume.dims()))
-                        .as_slice(),
-                )
-            }
-            _ => None,
-        };
         let job = Job {
-            z_pairs,
+            z_pairs: &self.z_pairs,
             pdf: pdf.as_slice(),
             volume,
             lut: Lut::new(tf, params.step),
@@ -693,9 +678,17 @@ impl<'v> Renderer<'v> {
     }
 }
 
+/// Premultiplied linear `c` over background `bg`: the pixel.
+#[inline]
+fn over_background(c: glam::Vec4, bg: Vec3) -> [f32; 4] {
+    let rgb = c.truncate() + bg * (1.0 - c.w);
+    [rgb.x, rgb.y, rgb.z, c.w]
+}
+
 struct Job<'a> {
-    /// The packets' u8 layout (u8 volumes, where packets may run).
-    z_pairs: Option<&'a [u16]>,
+    /// The renderer's u8 layout for the packets, built by the first
+    /// render that runs them on a u8 volume.
+    z_pairs: &'a std::sync::OnceLock<Vec<u16>>,
     pdf: &'a [stochastic::PdfBlock],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
@@ -859,6 +852,28 @@ impl Job<'_> {
         }
     }
 
+    /// The seed of the per-pixel start jitter (`jitter`, or `--jitter`).
+    fn jitter_seed(&self) -> Option<u64> {
+        let p = self.params;
+        (p.jitter || p.method == Method::Jitter).then_some(p.seed)
+    }
+
+    /// Passes per pixel: deterministic methods give the same image every
+    /// pass.
+    fn passes(&self) -> u32 {
+        let p = self.params;
+        if p.method.is_stochastic() || p.jitter {
+            p.spp
+        } else {
+            1
+        }
+    }
+
+    /// The background, linear.
+    fn background(&self) -> Vec3 {
+        Vec3::from(self.params.background.map(srgb_to_linear))
+    }
+
     /// A fixed-step render through the SIMD ray packets (packet.rs), where
     /// the CPU and the render allow; `None` where the scalar loop must run.
     fn packets<T: Voxel>(
@@ -876,10 +891,15 @@ impl Job<'_> {
             || self.surface.is_some()
             || !packet::available()
             || !packet::fits(f.grid)
-            || (T::KIND == crate::volume::VoxelKind::U8 && self.z_pairs.is_none())
         {
             return None;
         }
+        let z_pairs = match self.volume.data() {
+            crate::volume::VoxelData::U8(v) => self
+                .z_pairs
+                .get_or_init(|| packet::z_pairs(v, self.volume.dims())),
+            _ => &[][..],
+        };
         let empty: Option<Vec<i32>> = f
             .skip_empty
             .then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
@@ -888,18 +908,13 @@ impl Job<'_> {
             q: &t.level_tables[0],
             st: t.level_steps[0],
             weights: Weights::of(p.optical),
-            stop: if p.ert < 1.0 { p.ert } else { f32::INFINITY },
-            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
+            stop: composite::ert_stop(p.ert),
+            jitter: self.jitter_seed(),
             empty: empty.as_deref(),
             shading,
-            z_pairs: self.z_pairs.unwrap_or(&[]),
+            z_pairs,
         };
-        let passes = if p.method.is_stochastic() || p.jitter {
-            p.spp
-        } else {
-            1
-        };
-        let bg = Vec3::from(p.background.map(srgb_to_linear));
+        let (passes, bg) = (self.passes(), self.background());
         Some(tiles::render_tile_rows(
             p.width,
             p.height,
@@ -919,9 +934,7 @@ impl Job<'_> {
                         pk.row(&rays[..n], (x, y), pass, &mut acc[..n], stats);
                     }
                     for (px, c) in chunk.iter_mut().zip(acc) {
-                        let c = c / passes as f32;
-                        let rgb = c.truncate() + bg * (1.0 - c.w);
-                        *px = [rgb.x, rgb.y, rgb.z, c.w];
+                        *px = over_background(c / passes as f32, bg);
                     }
                 }
             },
@@ -956,16 +969,10 @@ impl Job<'_> {
             sampler,
             weights: Weights::of(p.optical),
             ert: p.ert,
-            jitter: (p.jitter || p.method == Method::Jitter).then_some(p.seed),
+            jitter: self.jitter_seed(),
             surface: self.surface,
         };
-        // Deterministic methods give the same image every pass.
-        let passes = if p.method.is_stochastic() || p.jitter {
-            p.spp
-        } else {
-            1
-        };
-        let bg = Vec3::from(p.background.map(srgb_to_linear));
+        let (passes, bg) = (self.passes(), self.background());
         tiles::render_tiles(
             p.width,
             p.height,
@@ -979,9 +986,7 @@ impl Job<'_> {
                     c += trace::trace::<T, M, S, C>(f, &tr, (o, d), (x, y), pass, stats, scratch);
                 }
                 // Progressive average of premultiplied colour (linear).
-                let c = c / passes as f32;
-                let rgb = c.truncate() + bg * (1.0 - c.w);
-                [rgb.x, rgb.y, rgb.z, c.w]
+                over_background(c / passes as f32, bg)
             },
             |_, _| {},
         )

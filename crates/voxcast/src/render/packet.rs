@@ -508,7 +508,6 @@ mod avx2 {
     unsafe fn rows(table: *const f32, i4: __m256i) -> [__m256; 4] {
         let mut ix = [0i32; LANES];
         _mm256_storeu_si256(ix.as_mut_ptr() as *mut __m256i, i4);
-        // (No closures here: they would not inherit the caller's AVX2.)
         let a0 = _mm256_set_m128(
             _mm_loadu_ps(table.add(ix[4] as usize)),
             _mm_loadu_ps(table.add(ix[0] as usize)),
