@@ -1,0 +1,383 @@
+//! What a render is asked for, apart from the volume, the transfer
+//! function and the camera: the method (where samples go, as the command
+//! line writes it), the compositing order, the inner loop, and every
+//! parameter ([`RenderParams`]), with the checks a user's numbers get.
+
+use super::{blocks, light, lod, medium, AdaptiveParams, OpticalModel, ThresholdParams};
+use crate::error::{Error, Result};
+use crate::volume::Volume;
+use serde::{Deserialize, Serialize};
+
+/// Where samples go along the ray (DESIGN.md axis 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Equal steps of `step` voxels (S4).
+    #[default]
+    Uniform,
+    /// S0: a step per block from the frequency `F = k·|MN|/|MS|`, with `k`
+    /// the largest partial derivative at the block's midpoint.
+    Adaptive,
+    /// S0's frequency with `k` the block's largest gradient magnitude instead
+    /// of the midpoint's (the midpoint can miss a thin feature).
+    AdaptiveMax,
+    /// Zeng et al. 2018: the step depends on the value range the current
+    /// sample falls into.
+    Threshold,
+    /// Uniform steps from one random offset per ray (a golden-ratio sequence
+    /// over the `spp` passes): no wood grain.
+    Jitter,
+    /// S1: one random position in each step interval.
+    Stratified,
+    /// S1 eqs. 5–6: ⌈L/step⌉ uniformly random positions on the whole ray.
+    Mc,
+    /// S1 eq. 7: stratified positions from a pdf following the TF opacity of
+    /// the blocks the ray crosses and the light that can reach them,
+    /// weighted by 1/(n·p(x)) (a step that varies from block to block).
+    Importance,
+    /// Optical model 4: single scattering of the lights with shadows, in a
+    /// physically based medium (`[render.medium]`, `[[render.lights]]`).
+    SingleScatter,
+    /// Optical model 5: volumetric path tracing (delta tracking, ratio
+    /// tracking, next-event estimation, Russian roulette, majorant grid).
+    Path,
+    /// S3: octree traversal skipping empty subtrees, with equidistant
+    /// decimation of the uniform samples per leaf (odd spacings where the
+    /// contribution is high, even where it is low).
+    Lod,
+}
+
+impl Method {
+    pub const ALL: [Method; 11] = [
+        Method::Uniform,
+        Method::Adaptive,
+        Method::AdaptiveMax,
+        Method::Threshold,
+        Method::Jitter,
+        Method::Stratified,
+        Method::Mc,
+        Method::Importance,
+        Method::SingleScatter,
+        Method::Path,
+        Method::Lod,
+    ];
+
+    /// The physically based integrators (`render/path.rs`).
+    pub fn is_physical(self) -> bool {
+        matches!(self, Method::SingleScatter | Method::Path)
+    }
+
+    /// The methods whose sample positions are random (S1), which
+    /// progressive `spp` passes average.
+    pub fn is_stochastic(self) -> bool {
+        matches!(
+            self,
+            Method::Jitter
+                | Method::Stratified
+                | Method::Mc
+                | Method::Importance
+                | Method::SingleScatter
+                | Method::Path
+        )
+    }
+
+    /// The marchers of `render/stochastic.rs`.
+    pub fn is_monte_carlo(self) -> bool {
+        matches!(self, Method::Stratified | Method::Mc | Method::Importance)
+    }
+
+    /// The name used on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Uniform => "uniform",
+            Method::Adaptive => "adaptive",
+            Method::AdaptiveMax => "adaptive-max",
+            Method::Threshold => "threshold",
+            Method::Jitter => "jitter",
+            Method::Stratified => "stratified",
+            Method::Mc => "mc",
+            Method::Importance => "importance",
+            Method::SingleScatter => "single-scatter",
+            Method::Path => "path",
+            Method::Lod => "lod",
+        }
+    }
+
+    /// Parses a method name.
+    pub fn parse(s: &str) -> Option<Method> {
+        Method::ALL.into_iter().find(|m| m.name() == s)
+    }
+}
+
+/// A method as written on the command line: a marcher name optionally
+/// followed by `+grouped` (S0's grouped interpolation) and/or `+noskip`
+/// (empty-space skipping off), e.g. `adaptive+grouped`, `uniform+noskip`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MethodSpec {
+    pub method: Method,
+    pub grouped: bool,
+    /// Turn empty-space skipping off (otherwise the scene's setting holds).
+    pub no_skip: bool,
+}
+
+impl MethodSpec {
+    /// Parses `NAME[+grouped][+noskip]`.
+    pub fn parse(s: &str) -> Result<MethodSpec> {
+        let mut parts = s.trim().split('+');
+        let name = parts.next().unwrap_or("");
+        let method = Method::parse(name).ok_or_else(|| {
+            let names: Vec<&str> = Method::ALL.iter().map(|m| m.name()).collect();
+            Error::invalid(format!(
+                "method `{s}`: unknown sampling method `{name}` (known: {}; add +grouped for grouped interpolation, +noskip to turn empty-space skipping off)",
+                names.join(", ")
+            ))
+        })?;
+        let mut grouped = false;
+        let mut no_skip = false;
+        for p in parts {
+            match p {
+                "grouped" => grouped = true,
+                "noskip" => no_skip = true,
+                _ => {
+                    return Err(Error::invalid(format!(
+                        "method `{s}`: unknown modifier `+{p}` (known: +grouped, +noskip)"
+                    )))
+                }
+            }
+        }
+        Ok(MethodSpec {
+            method,
+            grouped,
+            no_skip,
+        })
+    }
+
+    /// Sets the method and modifiers of `params`.
+    pub fn apply(&self, params: &mut RenderParams) {
+        params.method = self.method;
+        params.grouped = self.grouped;
+        if self.no_skip {
+            params.skip_empty = false;
+        }
+    }
+
+    /// Reads the spec back from `params`.
+    pub fn of(params: &RenderParams) -> MethodSpec {
+        MethodSpec {
+            method: params.method,
+            grouped: params.grouped,
+            no_skip: !params.skip_empty,
+        }
+    }
+}
+
+impl std::fmt::Display for MethodSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.method.name())?;
+        if self.grouped {
+            f.write_str("+grouped")?;
+        }
+        if self.no_skip {
+            f.write_str("+noskip")?;
+        }
+        Ok(())
+    }
+}
+
+/// Compositing order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Order {
+    /// Front to back, with early ray termination.
+    #[default]
+    FrontToBack,
+    /// Back to front (no early termination possible).
+    BackToFront,
+}
+
+/// Which inner loop runs where both could.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum Simd {
+    /// SIMD ray packets where the CPU has them (AVX2 + FMA) and the render
+    /// is one they cover (fixed step, trilinear, flat or Phong, front to
+    /// back); the scalar loop otherwise.
+    #[default]
+    Auto,
+    /// The scalar loop always (the reference the packets are tested
+    /// against).
+    Scalar,
+}
+
+impl Simd {
+    fn is_auto(&self) -> bool {
+        *self == Simd::Auto
+    }
+}
+
+/// Everything about a render that is not the volume, the transfer function
+/// or the camera.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[serde(default)]
+pub struct RenderParams {
+    pub width: u32,
+    pub height: u32,
+    pub method: Method,
+    /// Step length in voxels (of the smallest spacing).
+    pub step: f32,
+    /// Early ray termination: stop when accumulated opacity reaches this
+    /// (1 disables).
+    pub ert: f32,
+    pub order: Order,
+    pub optical: OpticalModel,
+    /// Gradient Blinn–Phong shading.
+    pub shading: bool,
+    /// Background colour, sRGB 0…1.
+    pub background: [f32; 3],
+    /// Seed for the stochastic methods and jitter (the same scene and seed
+    /// give the same image).
+    pub seed: u64,
+    /// S0 grouped interpolation: farther samples reuse the value of the
+    /// first sample of their group of 2 or 3.
+    pub grouped: bool,
+    /// Empty-space skipping over blocks whose values are all transparent.
+    pub skip_empty: bool,
+    /// A random start offset in [0, Δ) per pixel, against wood-grain artefacts.
+    pub jitter: bool,
+    /// Parameters of `adaptive` and `adaptive-max`.
+    pub adaptive: AdaptiveParams,
+    /// Parameters of `threshold`.
+    pub threshold: ThresholdParams,
+    /// Edge of the blocks for empty-space skipping and the adaptive
+    /// marchers, in cells (2…64).
+    pub block_size: u32,
+    /// Samples (passes) per pixel of the stochastic methods, averaged
+    /// progressively; each pass draws new random positions.
+    pub spp: u32,
+    /// Lights of `single-scatter` and `path` (none: a default sun and sky).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lights: Vec<light::Light>,
+    /// The medium of `single-scatter` and `path`.
+    pub medium: medium::MediumParams,
+    /// Parameters of `lod` (S3).
+    pub lod: lod::LodParams,
+    /// SIMD ray packets or the scalar loop (the same picture).
+    #[serde(skip_serializing_if = "Simd::is_auto")]
+    pub simd: Simd,
+}
+
+impl Default for RenderParams {
+    fn default() -> Self {
+        RenderParams {
+            width: 512,
+            height: 512,
+            method: Method::Uniform,
+            step: 0.5,
+            ert: 0.99,
+            order: Order::FrontToBack,
+            optical: OpticalModel::EmissionAbsorption,
+            shading: true,
+            background: [0.0, 0.0, 0.0],
+            seed: 0,
+            grouped: false,
+            skip_empty: true,
+            jitter: false,
+            adaptive: AdaptiveParams::default(),
+            threshold: ThresholdParams::default(),
+            block_size: blocks::DEFAULT_BLOCK as u32,
+            spp: 1,
+            lights: Vec::new(),
+            medium: medium::MediumParams::default(),
+            lod: lod::LodParams::default(),
+            simd: Simd::Auto,
+        }
+    }
+}
+
+impl RenderParams {
+    /// The lights of `single-scatter` and `path`: the scene's, or the
+    /// default sun and sky when it has none.
+    pub fn lights_or_default(&self) -> std::borrow::Cow<'_, [light::Light]> {
+        if self.lights.is_empty() {
+            std::borrow::Cow::Owned(light::Light::default_sun_and_sky())
+        } else {
+            std::borrow::Cow::Borrowed(&self.lights)
+        }
+    }
+
+    /// Checks the numbers a user may get wrong.
+    /// [`RenderParams::validate`], and what depends on the volume: the
+    /// physical methods' optical depth.
+    pub fn validate_for(&self, volume: &Volume) -> Result<()> {
+        self.validate()?;
+        if self.method.is_physical() {
+            self.medium
+                .check_optical_depth(volume)
+                .map_err(Error::invalid)?;
+        }
+        Ok(())
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
+            return Err(Error::invalid(format!(
+                "image size {}×{}: each side must be 1…16384 pixels",
+                self.width, self.height
+            )));
+        }
+        if !(self.step.is_finite() && self.step >= 1e-3 && self.step <= 64.0) {
+            return Err(Error::invalid(format!(
+                "step {}: must be between 0.001 and 64 voxels",
+                self.step
+            )));
+        }
+        if !(self.ert > 0.0 && self.ert <= 1.0) {
+            return Err(Error::invalid(format!(
+                "ert {}: the termination threshold must be in (0, 1] (1 disables it)",
+                self.ert
+            )));
+        }
+        if !(2..=64).contains(&self.block_size) {
+            return Err(Error::invalid(format!(
+                "block size {}: must be 2…64 cells",
+                self.block_size
+            )));
+        }
+        if !(1..=1 << 20).contains(&self.spp) {
+            return Err(Error::invalid(format!(
+                "spp {}: samples per pixel must be 1…1048576",
+                self.spp
+            )));
+        }
+        self.medium.validate().map_err(Error::invalid)?;
+        for l in &self.lights {
+            l.validate().map_err(Error::invalid)?;
+        }
+        let t = &self.threshold;
+        if t.steps
+            .iter()
+            .any(|s| !(s.is_finite() && *s >= 1e-3 && *s <= 64.0))
+            || t.bounds.iter().any(|b| b.is_nan())
+            || t.bounds[0] > t.bounds[1]
+        {
+            return Err(Error::invalid(format!(
+                "threshold: steps {:?} must be 0.001…64 voxels and bounds {:?} ordered",
+                t.steps, t.bounds
+            )));
+        }
+        let a = &self.adaptive;
+        let bad =
+            |s: Option<f32>| s.is_some_and(|s| !(s.is_finite() && (1e-3..=64.0).contains(&s)));
+        if !(a.k_ref.is_finite() && a.k_ref > 0.0) || bad(a.min_step) || bad(a.max_step) {
+            return Err(Error::invalid(
+                "adaptive: k_ref must be positive and min/max steps 0.001…64 voxels",
+            ));
+        }
+        self.lod.validate()?;
+        if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
+            return Err(Error::invalid("background: each component must be in 0…1"));
+        }
+        Ok(())
+    }
+}
