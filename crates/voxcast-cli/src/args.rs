@@ -283,8 +283,9 @@ pub struct SceneArgs {
     pub optical: Option<OpticalArg>,
     /// CPU inner loop: `auto` runs eight rays per SIMD packet where the CPU
     /// has AVX2 and the render is a fixed step (uniform, jitter), not grouped,
-    /// front to back;
-    /// `scalar` always runs the scalar loop (the same picture).
+    /// front to back, compiled for AVX-512 where the CPU has it; `avx2` keeps
+    /// the packets to AVX2; `scalar` always runs the scalar loop (the same
+    /// picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,
     /// Gradient (Blinn–Phong) shading: on or off (default on).
@@ -576,6 +577,7 @@ pub enum OrderArg {
 #[derive(clap::ValueEnum, Clone, Copy)]
 pub enum SimdArg {
     Auto,
+    Avx2,
     Scalar,
 }
 
@@ -690,6 +692,7 @@ impl SceneArgs {
         if let Some(v) = self.simd {
             r.simd = match v {
                 SimdArg::Auto => Simd::Auto,
+                SimdArg::Avx2 => Simd::Avx2,
                 SimdArg::Scalar => Simd::Scalar,
             };
         }

@@ -170,12 +170,27 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
     ]
 }
 
-/// The SIMD packets (where this CPU has them) against the scalar loop:
+/// The packet levels this CPU runs (`Simd::Auto` picks the best; `Avx2`
+/// holds it to AVX2), each named once; none without AVX2.
+fn simd_levels() -> Vec<(Simd, &'static str)> {
+    let mut out: Vec<(Simd, &'static str)> = Vec::new();
+    for simd in [Simd::Auto, Simd::Avx2] {
+        if let Some(l) = voxcast::render::simd_level(simd) {
+            if out.iter().all(|(_, n)| *n != l.name()) {
+                out.push((simd, l.name()));
+            }
+        }
+    }
+    out
+}
+
+/// The SIMD packets, at every level this CPU has, against the scalar loop:
 /// every stored type, both fixed-step methods, skipping on and off, early
 /// termination on and off, flat and Phong, every optical model, several
 /// passes of jitter.
-/// On a CPU without AVX2 both renders take the scalar loop and the test
-/// checks nothing new (the packets' own dispatch is then the thing tested).
+/// On a CPU without AVX2 there is no level and the test checks nothing (the
+/// packets' own dispatch, which must then pick the scalar loop, is what the
+/// other tests see).
 #[test]
 fn packets_give_the_scalar_pixels() {
     let tf = TransferFunction {
@@ -209,32 +224,35 @@ fn packets_give_the_scalar_pixels() {
                             background: [0.2, 0.1, 0.3],
                             ..Default::default()
                         };
-                        let (simd, ss) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
                         p.simd = Simd::Scalar;
                         let (scalar, sc) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
-                        let d = max_diff(&simd, &scalar);
-                        let what = format!(
-                            "{} {:?} skip {skip_empty} ert {ert} shading {shading} {optical:?}",
+                        for (level, name) in simd_levels() {
+                            p.simd = level;
+                            let (simd, ss) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
+                            let d = max_diff(&simd, &scalar);
+                            let what = format!(
+                            "{name}: {} {:?} skip {skip_empty} ert {ert} shading {shading} {optical:?}",
                             method.name(),
                             vol.scalar_type()
                         );
-                        assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
-                        assert_eq!(ss.rays, sc.rays, "{what}");
-                        assert_eq!(ss.rays_hit, sc.rays_hit, "{what}");
-                        assert!(sc.rays_hit < sc.rays, "{what}: every ray hits");
-                        assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
-                        let (a, b) = (
-                            ss.gradient_interpolations as f64,
-                            sc.gradient_interpolations as f64,
-                        );
-                        assert!((a - b).abs() <= 1e-3 * b, "{what}: gradients {a} vs {b}");
-                        assert_eq!(b > 0.0, shading, "{what}: gradients {b}");
-                        // Samples keep their meaning: the same samples
-                        // (lanes skip sample by sample where the scalar
-                        // march skips block by block, by the same rule on
-                        // faces; a rounding at a face may differ).
-                        let (a, b) = (ss.samples as f64, sc.samples as f64);
-                        assert!((a - b).abs() <= 1e-3 * b, "{what}: samples {a} vs {b}");
+                            assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
+                            assert_eq!(ss.rays, sc.rays, "{what}");
+                            assert_eq!(ss.rays_hit, sc.rays_hit, "{what}");
+                            assert!(sc.rays_hit < sc.rays, "{what}: every ray hits");
+                            assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
+                            let (a, b) = (
+                                ss.gradient_interpolations as f64,
+                                sc.gradient_interpolations as f64,
+                            );
+                            assert!((a - b).abs() <= 1e-3 * b, "{what}: gradients {a} vs {b}");
+                            assert_eq!(b > 0.0, shading, "{what}: gradients {b}");
+                            // Samples keep their meaning: the same samples
+                            // (lanes skip sample by sample where the scalar
+                            // march skips block by block, by the same rule on
+                            // faces; a rounding at a face may differ).
+                            let (a, b) = (ss.samples as f64, sc.samples as f64);
+                            assert!((a - b).abs() <= 1e-3 * b, "{what}: samples {a} vs {b}");
+                        }
                         terminated += sc.early_terminated;
                     }
                 }
@@ -290,17 +308,20 @@ fn packets_handle_thin_volumes() {
                     skip_empty,
                     ..Default::default()
                 };
-                let (a, sa) = r.render(&tf, &cam, &p, &no_progress).unwrap();
                 p.simd = Simd::Scalar;
                 let (b, sb) = r.render(&tf, &cam, &p, &no_progress).unwrap();
-                let d = max_diff(&a, &b);
-                let what = format!(
-                    "{dims:?} {:?} elevation {elevation} skip {skip_empty}",
-                    vol.scalar_type()
-                );
-                assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
-                assert!(sb.samples > 0, "{what}: nothing sampled");
-                assert_eq!(sa.rays_hit, sb.rays_hit, "{what}");
+                for (level, name) in simd_levels() {
+                    p.simd = level;
+                    let (a, sa) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+                    let d = max_diff(&a, &b);
+                    let what = format!(
+                        "{name}: {dims:?} {:?} elevation {elevation} skip {skip_empty}",
+                        vol.scalar_type()
+                    );
+                    assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
+                    assert!(sb.samples > 0, "{what}: nothing sampled");
+                    assert_eq!(sa.rays_hit, sb.rays_hit, "{what}");
+                }
             }
         }
     }

@@ -28,6 +28,7 @@ mod trace;
 
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
+pub use packet::{level as simd_level, Level as SimdLevel};
 pub use params::{Method, MethodSpec, Order, RenderParams, Simd};
 pub use stats::RenderStats;
 
@@ -511,12 +512,11 @@ impl Job<'_> {
         let p = self.params;
         // The shading `shaded` picks.
         let shading = p.shading.then(BlinnPhong::default);
-        if p.simd == Simd::Scalar
-            || p.grouped
+        let level = packet::level(p.simd)?;
+        if p.grouped
             || shading.is_some_and(|bp| !packet::shades(&bp))
             || p.order != Order::FrontToBack
             || self.surface.is_some()
-            || !packet::available()
             || !packet::fits(f.grid)
         {
             return None;
@@ -540,6 +540,7 @@ impl Job<'_> {
             empty: empty.as_deref(),
             shading,
             z_pairs,
+            level,
         };
         let (passes, bg) = (self.passes(), self.background());
         Some(tiles::render_tile_rows(

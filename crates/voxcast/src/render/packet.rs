@@ -22,7 +22,9 @@
 //! The last sample of a ray (its stretch ends at the volume's exit, not a
 //! full step) is composited by the scalar code, lane by lane.
 //!
-//! Dispatch is at run time ([`available`]): x86-64 with AVX2 and FMA; any
+//! Dispatch is at run time ([`level`]): x86-64 with AVX2 and FMA runs the
+//! eight lanes compiled for AVX2, or where the CPU has AVX-512 F/VL the
+//! same lanes compiled for it (thirty-two registers: nothing spills); any
 //! other machine, or `RenderParams::simd = scalar`, takes the scalar loop,
 //! which stays the reference.
 
@@ -40,15 +42,46 @@ use glam::{Vec3, Vec4};
 /// Lanes of a packet.
 pub(super) const LANES: usize = 8;
 
-/// Whether this CPU runs the packets (x86-64 with AVX2 and FMA).
-pub(super) fn available() -> bool {
+/// The instruction set a packet is compiled for, picked at run time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    /// AVX2 + FMA: eight lanes in 256-bit registers, sixteen of them.
+    Avx2,
+    /// The same eight lanes compiled with AVX-512 F/VL: thirty-two
+    /// registers (the loop's constants and lane state stay in registers
+    /// instead of spilling to the stack), masked blends.
+    Avx512,
+}
+
+impl Level {
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::Avx2 => "avx2",
+            Level::Avx512 => "avx512",
+        }
+    }
+}
+
+/// The packets' level on this CPU under `simd`, or `None` where the scalar
+/// loop runs (no AVX2 + FMA, not x86-64, or `Simd::Scalar`).
+pub fn level(simd: super::Simd) -> Option<Level> {
     #[cfg(target_arch = "x86_64")]
     {
-        std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma")
+        use super::Simd;
+        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+        let avx512 =
+            std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl");
+        match simd {
+            Simd::Scalar => None,
+            _ if !avx2 => None,
+            Simd::Auto if avx512 => Some(Level::Avx512),
+            Simd::Auto | Simd::Avx2 => Some(Level::Avx2),
+        }
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        false
+        let _ = simd;
+        None
     }
 }
 
@@ -69,13 +102,35 @@ pub(super) fn fits<T: Voxel>(g: &crate::volume::Grid<'_, T>) -> bool {
 pub(super) fn z_pairs(v: &[u8], dims: [usize; 3]) -> Vec<u16> {
     let slice = dims[0] * dims[1];
     let last = slice * (dims[2] - 1);
-    v.iter()
-        .enumerate()
-        .map(|(i, &a)| {
-            let b = if i < last { v[i + slice] } else { a };
-            a as u16 | (b as u16) << 8
-        })
-        .collect()
+    let mut out = Vec::with_capacity(v.len());
+    huge_pages(&mut out);
+    out.extend(v.iter().enumerate().map(|(i, &a)| {
+        let b = if i < last { v[i + slice] } else { a };
+        a as u16 | (b as u16) << 8
+    }));
+    out
+}
+
+/// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
+/// the lanes' fetches land on scattered slices, and with 4 KiB pages a
+/// volume of tens of MiB misses the TLB on most of them. A hint only (it
+/// does nothing where transparent huge pages are off).
+fn huge_pages<T>(v: &mut Vec<T>) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let start = v.as_mut_ptr() as usize;
+        let end = start + v.capacity() * std::mem::size_of::<T>();
+        let lo = start.next_multiple_of(HUGE);
+        let hi = end / HUGE * HUGE;
+        if hi > lo {
+            // SAFETY: [lo, hi) lies inside `v`'s allocation; MADV_HUGEPAGE
+            // changes how pages are backed, never their contents.
+            unsafe { libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_HUGEPAGE) };
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
 }
 
 /// What every packet of a render shares.
@@ -97,6 +152,8 @@ pub(super) struct Packets<'a, T> {
     pub shading: Option<BlinnPhong>,
     /// For u8 grids, the grid as [`z_pairs`] (empty for other types).
     pub z_pairs: &'a [u16],
+    /// The instruction set ([`level`]).
+    pub level: Level,
 }
 
 /// Whether the packets can shade with `bp`: the specular power is taken by
@@ -195,24 +252,32 @@ impl<T: Voxel> Packets<'_, T> {
         let mut acc = [Vec4::ZERO; LANES];
         let mut count = [[0u32; 2]; LANES];
         let mut alive = [false; LANES];
-        // SAFETY: `available()` was checked before any packet was made
-        // (the only caller, `Job::packets`, does), `fits` for the grid and
-        // `shades` for the shading.
+        // SAFETY: `level` checked the CPU before any packet was made (the
+        // only caller, `Job::packets`, takes it from there), `fits` for the
+        // grid and `shades` for the shading.
         #[cfg(target_arch = "x86_64")]
         unsafe {
-            match (self.empty.is_some(), self.shading.is_some()) {
-                (false, false) => {
-                    avx2::march::<T, false, false>(self, &lanes, &mut acc, &mut count, &mut alive)
-                }
-                (true, false) => {
-                    avx2::march::<T, true, false>(self, &lanes, &mut acc, &mut count, &mut alive)
-                }
-                (false, true) => {
-                    avx2::march::<T, false, true>(self, &lanes, &mut acc, &mut count, &mut alive)
-                }
-                (true, true) => {
-                    avx2::march::<T, true, true>(self, &lanes, &mut acc, &mut count, &mut alive)
-                }
+            macro_rules! go {
+                ($f:ident) => {
+                    match (self.empty.is_some(), self.shading.is_some()) {
+                        (false, false) => avx2::$f::<T, false, false>(
+                            self, &lanes, &mut acc, &mut count, &mut alive,
+                        ),
+                        (true, false) => avx2::$f::<T, true, false>(
+                            self, &lanes, &mut acc, &mut count, &mut alive,
+                        ),
+                        (false, true) => avx2::$f::<T, false, true>(
+                            self, &lanes, &mut acc, &mut count, &mut alive,
+                        ),
+                        (true, true) => avx2::$f::<T, true, true>(
+                            self, &lanes, &mut acc, &mut count, &mut alive,
+                        ),
+                    }
+                };
+            }
+            match self.level {
+                Level::Avx2 => go!(march_avx2),
+                Level::Avx512 => go!(march_avx512),
             }
         };
         let mut n = Counters::default();
@@ -556,10 +621,42 @@ mod avx2 {
     /// (`pk.shading`).
     ///
     /// # Safety
-    /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a
-    /// u8 grid, `pk.z_pairs` is its z-paired copy.
+    /// The level's instructions present (AVX2 and FMA, and for
+    /// `march_avx512` AVX-512 F and VL); the grid `fits`; the shading
+    /// `shades`; for a u8 grid, `pk.z_pairs` is its z-paired copy.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool>(
+    pub(super) unsafe fn march_avx2<T: Voxel, const SKIP: bool, const SHADE: bool>(
+        pk: &Packets<'_, T>,
+        lanes: &[Option<Lane>; LANES],
+        acc: &mut [Vec4; LANES],
+        count: &mut [[u32; 2]; LANES],
+        alive: &mut [bool; LANES],
+    ) {
+        march::<T, SKIP, SHADE>(pk, lanes, acc, count, alive)
+    }
+
+    /// [`march_avx2`], compiled with AVX-512 F and VL as well (same lanes,
+    /// same arithmetic, twice the registers).
+    ///
+    /// # Safety
+    /// As [`march_avx2`].
+    #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
+    pub(super) unsafe fn march_avx512<T: Voxel, const SKIP: bool, const SHADE: bool>(
+        pk: &Packets<'_, T>,
+        lanes: &[Option<Lane>; LANES],
+        acc: &mut [Vec4; LANES],
+        count: &mut [[u32; 2]; LANES],
+        alive: &mut [bool; LANES],
+    ) {
+        march::<T, SKIP, SHADE>(pk, lanes, acc, count, alive)
+    }
+
+    /// The loop of both levels, inlined into each.
+    ///
+    /// # Safety
+    /// As [`march_avx2`].
+    #[inline(always)]
+    unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool>(
         pk: &Packets<'_, T>,
         lanes: &[Option<Lane>; LANES],
         acc: &mut [Vec4; LANES],

@@ -199,11 +199,15 @@ pub enum Order {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "kebab-case")]
 pub enum Simd {
-    /// SIMD ray packets where the CPU has them (AVX2 + FMA) and the render
-    /// is one they cover (fixed step, trilinear, flat or Phong, front to
-    /// back); the scalar loop otherwise.
+    /// SIMD ray packets where the CPU has them and the render is one they
+    /// cover (fixed step, trilinear, flat or Phong, front to back), compiled
+    /// for the best instruction set the CPU has (AVX-512, else AVX2 + FMA);
+    /// the scalar loop otherwise.
     #[default]
     Auto,
+    /// The packets compiled for AVX2 + FMA even where the CPU has AVX-512
+    /// (to compare the two, and to test each).
+    Avx2,
     /// The scalar loop always (the reference the packets are tested
     /// against).
     Scalar,
