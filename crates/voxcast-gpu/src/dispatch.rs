@@ -1,0 +1,379 @@
+//! [`GpuRenderer::render`]'s body: the uniforms, bind groups and dispatches
+//! of one render, the read-back, and the statistics.
+
+use std::time::Instant;
+
+use voxcast::camera::{Camera, CameraParams, Projection};
+use voxcast::render::{Method, OpticalModel, Order, RenderParams, RenderStats};
+use voxcast::transfer::{srgb_to_linear, Lut, TransferFunction, LUT_SIZE};
+use voxcast::Image;
+use wgpu::util::DeviceExt;
+
+use crate::context::{read_back, GpuError};
+use crate::renderer::{
+    method_code, GpuRenderer, Params, F_GROUPED, F_JITTER, F_SHADING, F_SKIP, PASSES_PER_DISPATCH,
+};
+use crate::scene::SceneData;
+
+impl GpuRenderer {
+    pub(crate) fn render_inner(
+        &self,
+        tf: &TransferFunction,
+        camera: &CameraParams,
+        params: &RenderParams,
+    ) -> Result<(Image, RenderStats), GpuError> {
+        params.validate_for(&self.volume)?;
+        if let Some(l) = &camera.look_at {
+            l.validate().map_err(voxcast::Error::invalid)?;
+        }
+        let method = method_code(params.method)?;
+        let physical = params.method.is_physical();
+        let geometry = self.geometry.as_ref().filter(|g| !g.is_empty());
+        if physical && geometry.is_some() {
+            // As the CPU renderer refuses it.
+            return Err(voxcast::Error::invalid(format!(
+                "method {}: opaque geometry is not supported by the physically based integrators yet; render without it (--geometry none) or use a ray-casting method",
+                params.method.name()
+            ))
+            .into());
+        }
+        let start = Instant::now();
+        let (w, h) = (params.width, params.height);
+        let pixels = w as u64 * h as u64;
+        let out_bytes = pixels * 16;
+        let limits = self.ctx.limits();
+        if out_bytes > limits.max_storage_buffer_binding_size {
+            return Err(GpuError::Unsupported(format!(
+                "image {w}×{h}: needs {} MiB of output buffer, more than this device's max_storage_buffer_binding_size of {} MiB",
+                out_bytes >> 20,
+                limits.max_storage_buffer_binding_size >> 20
+            )));
+        }
+        let device = &self.ctx.device;
+        let queue = &self.ctx.queue;
+        let mut st = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        if st.lut_tf.as_ref() != Some(tf) {
+            let lut = Lut::new(tf, 1.0);
+            let mut data = Vec::with_capacity(LUT_SIZE * 4);
+            for i in 0..LUT_SIZE {
+                let e = lut.entry(i);
+                data.extend_from_slice(&[e[0], e[1], e[2], lut.sigma(i)]);
+            }
+            queue.write_texture(
+                wgpu::TexelCopyTextureInfo {
+                    texture: &self.lut_texture,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d::ZERO,
+                    aspect: wgpu::TextureAspect::All,
+                },
+                bytemuck::cast_slice(&data),
+                wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(LUT_SIZE as u32 * 16),
+                    rows_per_image: None,
+                },
+                wgpu::Extent3d {
+                    width: LUT_SIZE as u32,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+            );
+            st.lut_tf = Some(tf.clone());
+        }
+        let blocks = self.blocks(&mut st, params.block_size as usize);
+        if blocks.tf.as_ref() != Some(tf) {
+            let flags: Vec<u32> = blocks
+                .grid
+                .empty_flags(tf)
+                .into_iter()
+                .map(u32::from)
+                .collect();
+            queue.write_buffer(&blocks.empty, 0, bytemuck::cast_slice(&flags));
+            blocks.tf = Some(tf.clone());
+        }
+        let counts = blocks.grid.counts;
+        let block_size = blocks.grid.size;
+
+        // The camera, as the CPU frames it (the volume and the shapes).
+        let (mut lo, mut hi) = self.volume.world_bounds();
+        if let Some((glo, ghi)) = geometry.and_then(|g| g.bounds()) {
+            (lo, hi) = (lo.min(glo), hi.max(ghi));
+        }
+        let cam = Camera::fit(camera, lo, hi, w, h);
+        let projection = camera.projection;
+        // Half extents of the image plane, recovered from the corner ray.
+        let (o, d) = cam.ray_at(w as f32, 0.0);
+        let (sx, sy) = match projection {
+            Projection::Perspective => (
+                d.dot(cam.right) / d.dot(cam.forward),
+                d.dot(cam.up) / d.dot(cam.forward),
+            ),
+            Projection::Orthographic => ((o - cam.eye).dot(cam.right), (o - cam.eye).dot(cam.up)),
+        };
+        let dims = self.volume.dims();
+        let (box_lo, box_hi) = self.volume.sample_box();
+        let unit = self.volume.spacing().min_element();
+        let inv = glam::Vec3::ONE / self.volume.spacing();
+        let origin = self.volume.origin();
+        let (level_lo, level_hi) =
+            if matches!(params.method, Method::Adaptive | Method::AdaptiveMax) {
+                params.adaptive.levels(params.step)
+            } else {
+                (0, 0)
+            };
+        let jitter = params.jitter || params.method == Method::Jitter;
+        let passes = if params.method.is_stochastic() || params.jitter {
+            params.spp
+        } else {
+            1
+        };
+        let ert = if params.order == Order::BackToFront {
+            1.0
+        } else {
+            params.ert
+        };
+        let mut flags = 0;
+        if params.shading {
+            flags |= F_SHADING;
+        }
+        if params.grouped {
+            flags |= F_GROUPED;
+        }
+        if jitter {
+            flags |= F_JITTER;
+        }
+        if params.skip_empty {
+            flags |= F_SKIP;
+        }
+        let seed = params.seed;
+        let sm = voxcast::render::rng::splitmix(seed);
+        let scene = SceneData::new(geometry, &cam, params, &self.volume, &blocks.grid);
+        let bg = params.background.map(srgb_to_linear);
+        let mut p = Params {
+            eye: [
+                cam.eye.x,
+                cam.eye.y,
+                cam.eye.z,
+                (projection == Projection::Orthographic) as u32 as f32,
+            ],
+            forward: [cam.forward.x, cam.forward.y, cam.forward.z, sx],
+            right: [cam.right.x, cam.right.y, cam.right.z, sy],
+            up: [cam.up.x, cam.up.y, cam.up.z, 0.0],
+            origin_w: [origin.x, origin.y, origin.z, unit],
+            inv_spacing: [inv.x, inv.y, inv.z, params.step],
+            box_lo: [box_lo.x, box_lo.y, box_lo.z, ert],
+            box_hi: [box_hi.x, box_hi.y, box_hi.z, params.adaptive.k_ref],
+            grid_max: [
+                (dims[0] - 1) as f32,
+                (dims[1] - 1) as f32,
+                (dims[2] - 1) as f32,
+                self.scale,
+            ],
+            background: [bg[0], bg[1], bg[2], self.offset],
+            dims: [
+                dims[0] as u32,
+                dims[1] as u32,
+                dims[2] as u32,
+                block_size as u32,
+            ],
+            counts: [counts[0] as u32, counts[1] as u32, counts[2] as u32, method],
+            size: [w, h, passes, flags],
+            seed: [
+                seed as u32,
+                (seed >> 32) as u32,
+                sm as u32,
+                (sm >> 32) as u32,
+            ],
+            levels: [
+                level_lo,
+                level_hi,
+                match params.optical {
+                    OpticalModel::AbsorptionOnly => 0,
+                    OpticalModel::EmissionOnly => 1,
+                    OpticalModel::EmissionAbsorption => 2,
+                },
+                0,
+            ],
+            geo: scene.geo,
+            surf_dir: scene.surf_dir,
+            surf_k: scene.surf_k,
+            med_offset: scene.med_offset,
+            med_scale: scene.med_scale,
+            med_hi: scene.med_hi,
+            med_albedo: scene.med_albedo,
+            med_flags: scene.med_flags,
+            bricks: [
+                self.bricking.counts[0] as u32,
+                self.bricking.counts[1] as u32,
+                self.bricking.counts[2] as u32,
+                self.bricking.len() as u32,
+            ],
+            brick_cells: [
+                self.bricking.cells[0] as u32,
+                self.bricking.cells[1] as u32,
+                self.bricking.cells[2] as u32,
+                0,
+            ],
+            chunk: [0, passes, 0, 0],
+            thresh: [
+                params.threshold.bounds[0],
+                params.threshold.bounds[1],
+                params.threshold.steps[0],
+                params.threshold.steps[1],
+            ],
+            thresh2: [params.threshold.steps[2], 0.0, 0.0, 0.0],
+        };
+        let records = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("shapes and lights"),
+            contents: bytemuck::cast_slice(&scene.records),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        let majorant = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("majorant"),
+            contents: bytemuck::cast_slice(&scene.majorant),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+
+        let (gx, gy) = (w.div_ceil(8), h.div_ceil(8));
+        let stats_bytes = gx as u64 * gy as u64 * 6 * 4;
+        if st.out.as_ref().map(|o| o.0) != Some(pixels) {
+            let buf = |label: &str, size: u64, usage: wgpu::BufferUsages| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size,
+                    usage,
+                    mapped_at_creation: false,
+                })
+            };
+            let storage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+            let read = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+            st.out = Some((
+                pixels,
+                buf("pixels", out_bytes, storage),
+                buf("stats", stats_bytes, storage),
+                buf("pixels read", out_bytes, read),
+                buf("stats read", stats_bytes, read),
+            ));
+        }
+        let blocks = &st.blocks[&(params.block_size as usize)];
+        let (_, out_px, out_stats, read_px, read_stats) = st.out.as_ref().expect("made above");
+        let tex = |binding: u32, slot: usize| wgpu::BindGroupEntry {
+            binding,
+            resource: wgpu::BindingResource::TextureView(&self.texture_views[slot]),
+        };
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("raycast"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: self.uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&self.texture_views[0]),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::TextureView(&self.lut_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: blocks.empty.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: blocks.max_grad.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: out_px.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: out_stats.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: records.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 8,
+                    resource: majorant.as_entire_binding(),
+                },
+                tex(9, 1),
+                tex(10, 2),
+                tex(11, 3),
+                tex(12, 4),
+                tex(13, 5),
+                tex(14, 6),
+                tex(15, 7),
+            ],
+        });
+        // One submit per chunk of passes (queue order keeps each chunk's
+        // parameters with its dispatch); the last one copies the sums out.
+        let mut first = 0;
+        while first < passes {
+            let end = (first + PASSES_PER_DISPATCH).min(passes);
+            p.chunk = [first, end, 0, 0];
+            queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
+            let mut enc = device.create_command_encoder(&Default::default());
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(&self.pipeline);
+                pass.set_bind_group(0, &bind, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            if end == passes {
+                enc.copy_buffer_to_buffer(out_px, 0, read_px, 0, out_bytes);
+                enc.copy_buffer_to_buffer(out_stats, 0, read_stats, 0, stats_bytes);
+            }
+            queue.submit([enc.finish()]);
+            first = end;
+        }
+        let px = read_back(device, read_px)?;
+        let sv = read_back(device, read_stats)?;
+        // The sums over the passes → the average, over the background (the
+        // CPU's arithmetic: linear radiance, opaque, for single-scatter).
+        let sums: &[[f32; 4]] = bytemuck::cast_slice(&px);
+        let n = passes as f32;
+        let bg_v = glam::Vec3::from(bg);
+        let pixels_f = sums
+            .iter()
+            .map(|&s| {
+                let s = glam::Vec4::from(s);
+                if physical {
+                    let c = s.truncate() / n;
+                    [c.x, c.y, c.z, 1.0]
+                } else {
+                    let c = s / n;
+                    let rgb = c.truncate() + bg_v * (1.0 - c.w);
+                    [rgb.x, rgb.y, rgb.z, c.w]
+                }
+            })
+            .collect();
+        let image = Image {
+            width: w,
+            height: h,
+            pixels: pixels_f,
+        };
+        let words: &[u32] = bytemuck::cast_slice(&sv);
+        let mut sum = [0u64; 6];
+        for chunk in words.chunks_exact(6) {
+            for (s, &v) in sum.iter_mut().zip(chunk) {
+                *s += v as u64;
+            }
+        }
+        let stats = RenderStats {
+            rays: sum[0],
+            rays_hit: sum[1],
+            samples: sum[2],
+            interpolations: sum[3],
+            gradient_interpolations: 6 * sum[4],
+            early_terminated: sum[5],
+            capped_paths: 0,
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        Ok((image, stats))
+    }
+}
