@@ -39,6 +39,9 @@ pub struct Machine {
     /// CPU model, where the OS says (Linux `/proc/cpuinfo`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cpu: Option<String>,
+    /// The instruction set the CPU ray packets use here (`avx512`, `avx2`),
+    /// or `none` (scalar loop only); `--simd` may hold a render below it.
+    pub simd: &'static str,
     pub os: &'static str,
     pub arch: &'static str,
 }
@@ -48,6 +51,7 @@ impl Machine {
         Machine {
             threads: rayon::current_num_threads(),
             cpu: cpu_model(),
+            simd: crate::render::simd_level(crate::render::Simd::Auto).map_or("none", |l| l.name()),
             os: std::env::consts::OS,
             arch: std::env::consts::ARCH,
         }

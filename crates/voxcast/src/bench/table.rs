@@ -90,6 +90,7 @@ fn preamble(r: &BenchReport) -> Vec<String> {
     if let Some(cpu) = &r.machine.cpu {
         machine.push_str(&format!(", {cpu}"));
     }
+    machine.push_str(&format!(", SIMD {}", r.machine.simd));
     let reference = &r.reference;
     vec![
         format!(
