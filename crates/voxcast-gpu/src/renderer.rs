@@ -67,6 +67,18 @@ pub(crate) struct Params {
 /// is split into dispatches of at most this many, each adding to the sums
 /// the one before left, so no single dispatch runs long enough to trip a
 /// GPU watchdog (about 2 s on desktop drivers).
+/// The ray caster's WGSL: the files of `shader/`, concatenated (WGSL has
+/// no imports; each file names the Rust it mirrors).
+const SHADER: &str = concat!(
+    include_str!("shader/params.wgsl"),
+    include_str!("shader/random.wgsl"),
+    include_str!("shader/volume.wgsl"),
+    include_str!("shader/march.wgsl"),
+    include_str!("shader/geometry.wgsl"),
+    include_str!("shader/scatter.wgsl"),
+    include_str!("shader/main.wgsl"),
+);
+
 pub(crate) const PASSES_PER_DISPATCH: u32 = 8;
 
 /// Texture slots for bricks (bindings 1 and 9…15).
@@ -291,8 +303,8 @@ impl GpuRenderer {
         });
         let lut_view = lut_texture.create_view(&Default::default());
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("raycast.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("raycast.wgsl").into()),
+            label: Some("voxcast ray caster (shader/*.wgsl)"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
         });
         let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
             binding,

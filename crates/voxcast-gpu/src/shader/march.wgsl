@@ -1,0 +1,322 @@
+// Where samples go: the block DDA (render/blocks.rs BlockWalker) and the
+// marchers (render/march.rs, render/threshold.rs, render/stochastic.rs).
+
+// ------------------------------------------------------------ the block DDA
+
+struct Walker {
+    t: f32,
+    t_out: f32,
+    block: vec3<i32>,
+    step: vec3<i32>,
+    t_max: vec3<f32>,
+    t_delta: vec3<f32>,
+};
+
+fn walker_new(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32) -> Walker {
+    var w: Walker;
+    let b = f32(P.dims.w);
+    let p = o + d * t_in;
+    w.t = t_in;
+    w.t_out = t_out;
+    for (var a = 0; a < 3; a += 1) {
+        let n = i32(P.counts[a]);
+        let q = p[a] / b;
+        var c: i32;
+        if d[a] < 0.0 {
+            c = i32(ceil(q)) - 1;
+        } else {
+            c = i32(floor(q));
+        }
+        c = clamp(c, 0, n - 1);
+        w.block[a] = c;
+        w.step[a] = 0;
+        w.t_max[a] = BIG;
+        w.t_delta[a] = BIG;
+        if d[a] > 0.0 {
+            w.step[a] = 1;
+            w.t_max[a] = (f32(c + 1) * b - o[a]) / d[a];
+            w.t_delta[a] = b / d[a];
+        } else if d[a] < 0.0 {
+            w.step[a] = -1;
+            w.t_max[a] = (f32(c) * b - o[a]) / d[a];
+            w.t_delta[a] = -b / d[a];
+        }
+    }
+    return w;
+}
+
+struct Stretch {
+    ta: f32,
+    tb: f32,
+    index: u32,
+};
+
+// Iterator::next of BlockWalker; call only while w.t < w.t_out.
+fn walker_next(w: ptr<function, Walker>) -> Stretch {
+    var a = 2;
+    if (*w).t_max.x <= (*w).t_max.y && (*w).t_max.x <= (*w).t_max.z {
+        a = 0;
+    } else if (*w).t_max.y <= (*w).t_max.z {
+        a = 1;
+    }
+    let t_exit = max(min((*w).t_max[a], (*w).t_out), (*w).t);
+    let bl = (*w).block;
+    var s: Stretch;
+    s.index = u32(bl.x) + P.counts.x * (u32(bl.y) + P.counts.y * u32(bl.z));
+    s.ta = (*w).t;
+    s.tb = t_exit;
+    (*w).t = t_exit;
+    (*w).t_max[a] += (*w).t_delta[a];
+    (*w).block[a] += (*w).step[a];
+    if (*w).block[a] < 0 || (*w).block[a] >= i32(P.counts[a]) {
+        (*w).t = (*w).t_out;
+    }
+    return s;
+}
+
+// ---------------------------------------------------------------- marchers
+
+// ray.rs march_blocks: uniform, jitter and the adaptive marchers.
+fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> bool {
+    var pend = false;
+    var pend_t = 0.0;
+    var pend_entry = 0;
+    var pend_rgb = vec3<f32>(0.0);
+    let method = P.counts.w;
+    let grouped = (P.size.w & F_GROUPED) != 0u;
+    let skip = (P.size.w & F_SKIP) != 0u;
+    let unit = P.origin_w.w;
+    var w = walker_new(o, d, t_in, t_out);
+    loop {
+        if w.t >= w.t_out {
+            break;
+        }
+        let st = walker_next(&w);
+        let ta = st.ta;
+        let tb = st.tb;
+        let is_empty = empty[st.index] != 0u;
+        var j = 0;
+        if method == M_ADAPTIVE || method == M_ADAPTIVE_MAX {
+            if is_empty {
+                j = P.levels.y;
+            } else if method == M_ADAPTIVE {
+                let tm = 0.5 * (ta + tb);
+                let g = gradient(o + d * tm);
+                n_interp += 6u;
+                let k = max(max(abs(g.x), abs(g.y)), abs(g.z));
+                j = level(k, t_out, tm);
+            } else {
+                j = level(max_grad[st.index], t_out, 0.5 * (ta + tb));
+            }
+        }
+        let ratio = P.inv_spacing.w * exp2(f32(j));
+        let s = ratio * unit;
+        let n0 = max(ceil((ta - t0) / s), 0.0);
+        let n1 = max(ceil((tb - t0) / s), 0.0);
+        if n1 <= n0 {
+            continue;
+        }
+        let k0 = u32(n0);
+        let k1 = u32(n1);
+        let t_first = t0 + n0 * s;
+        if pend {
+            pend = false;
+            let alpha = alpha_for(pend_entry, t_first - pend_t);
+            if alpha > 0.0 && add(pend_rgb, alpha) {
+                return true;
+            }
+        }
+        if is_empty && skip {
+            continue;
+        }
+        var last: Eval;
+        last.entry = -1;
+        for (var k = k0; k < k1; k += 1u) {
+            let t = t0 + f32(k) * s;
+            n_samples += 1u;
+            let head = !grouped || k == k0 || (k % group_size(t, t_out)) == 0u;
+            if head {
+                last = evaluate(o + d * t);
+            }
+            if last.entry < 0 {
+                continue;
+            }
+            if k + 1u < k1 {
+                let alpha = 1.0 - exp(-lut_entry(last.entry).w * ratio);
+                if alpha > 0.0 && add(last.rgb, alpha) {
+                    return true;
+                }
+            } else {
+                pend = true;
+                pend_t = t;
+                pend_entry = last.entry;
+                pend_rgb = last.rgb;
+            }
+        }
+    }
+    if pend {
+        let alpha = alpha_for(pend_entry, max(t_out, pend_t) - pend_t);
+        return alpha > 0.0 && add(pend_rgb, alpha);
+    }
+    return false;
+}
+
+// ray.rs march_threshold (Zeng et al. 2018): the step after each sample
+// follows the range its (head) value falls in; skipping an empty block
+// restarts the march on the base grid t0 + n·step.
+fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> bool {
+    let grouped = (P.size.w & F_GROUPED) != 0u;
+    let skip = (P.size.w & F_SKIP) != 0u;
+    let unit = P.origin_w.w;
+    let step = P.inv_spacing.w * unit;
+    var t = t0;
+    var head_value = 0.0;
+    var head = Eval(-1, vec3<f32>(0.0));
+    var count = 0u;
+    var w = walker_new(o, d, t_in, t_out);
+    loop {
+        if w.t >= w.t_out {
+            break;
+        }
+        let st = walker_next(&w);
+        if skip && empty[st.index] != 0u {
+            continue;
+        }
+        if t < st.ta {
+            t = t0 + ceil((st.ta - t0) / step) * step;
+            count = 0u;
+        }
+        loop {
+            if !(t < st.tb) {
+                break;
+            }
+            n_samples += 1u;
+            let is_head = !grouped || (count % group_size(t, t_out)) == 0u;
+            count += 1u;
+            let p = o + d * t;
+            if is_head {
+                head_value = sample(p);
+                n_interp += 1u;
+                head = classify(p, head_value);
+            }
+            var r_step = P.thresh2.x;
+            if head_value < P.thresh.x {
+                r_step = P.thresh.z;
+            } else if head_value < P.thresh.y {
+                r_step = P.thresh.w;
+            }
+            let s = r_step * unit;
+            if head.entry >= 0 {
+                var alpha: f32;
+                if t + s <= t_out {
+                    alpha = 1.0 - exp(-lut_entry(head.entry).w * r_step);
+                } else {
+                    alpha = alpha_for(head.entry, t_out - t);
+                }
+                if alpha > 0.0 && add(head.rgb, alpha) {
+                    return true;
+                }
+            }
+            t += s;
+        }
+    }
+    return false;
+}
+
+fn in_empty_block(p: vec3<f32>) -> bool {
+    let b = f32(P.dims.w);
+    let c = P.counts.xyz;
+    let q = max(p / b, vec3<f32>(0.0));
+    let i = min(vec3<u32>(q), c - vec3<u32>(1u));
+    return empty[i.x + c.x * (i.y + c.y * i.z)] != 0u;
+}
+
+// Composites the sample at p standing for a stretch of `len` (world).
+fn mc_sample(p: vec3<f32>, len: f32) -> bool {
+    n_samples += 1u;
+    let e = evaluate(p);
+    if e.entry < 0 {
+        return false;
+    }
+    let alpha = alpha_for(e.entry, len);
+    return alpha > 0.0 && add(e.rgb, alpha);
+}
+
+// stochastic.rs uniform_mc: ⌈L/step⌉ sorted uniform positions (S1 eqs. 5–6).
+fn march_mc(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
+    var rng = rng_for_pixel(px.x, px.y, pass_i);
+    let step = P.inv_spacing.w * P.origin_w.w;
+    let len = t_out - t_in;
+    let count = u32(max(ceil(len / step), 1.0));
+    let w = len / f32(count);
+    let skip = (P.size.w & F_SKIP) != 0u;
+    var cur = 1.0;
+    for (var left = count; left > 0u; left -= 1u) {
+        cur *= pow(1.0 - rng_uniform(&rng), 1.0 / f32(left));
+        let u = clamp(1.0 - cur, 0.0, 1.0 - 1.1920929e-7);
+        let p = o + d * (t_in + u * len);
+        if skip && in_empty_block(p) {
+            continue;
+        }
+        if mc_sample(p, w) {
+            return true;
+        }
+    }
+    return false;
+}
+
+// stochastic.rs interval_random: counter-based uniform for interval k.
+fn interval_random(key: vec2<u32>, k: u32) -> f32 {
+    let z = splitmix(key ^ mul64(vec2<u32>(k, 0u), vec2<u32>(0x6659FD93u, 0xD6E8FEB8u)));
+    return f32(z.y >> 8u) / 16777216.0;
+}
+
+// stochastic.rs stratified: one uniform position per step interval.
+fn march_stratified(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
+    var rng = rng_for_pixel(px.x, px.y, pass_i);
+    let unit = P.origin_w.w;
+    let s = P.inv_spacing.w * unit;
+    let klo = rng_next(&rng);
+    let khi = rng_next(&rng);
+    let key = vec2<u32>(klo, khi);
+    let last = u32(max(ceil((t_out - t_in) / s), 1.0)) - 1u;
+    let skip = (P.size.w & F_SKIP) != 0u;
+    var w = walker_new(o, d, t_in, t_out);
+    loop {
+        if w.t >= w.t_out {
+            break;
+        }
+        let st = walker_next(&w);
+        if skip && empty[st.index] != 0u {
+            continue;
+        }
+        let k0 = u32(max(floor((st.ta - t_in) / s), 0.0));
+        let k1 = min(u32(max(floor((st.tb - t_in) / s), 0.0)), last);
+        for (var k = k0; k <= k1; k += 1u) {
+            let a = t_in + f32(k) * s;
+            var len = s;
+            if k == last {
+                len = t_out - a;
+            }
+            let t = a + interval_random(key, k) * len;
+            if t < st.ta || t >= st.tb {
+                continue;
+            }
+            n_samples += 1u;
+            let e = evaluate(o + d * t);
+            if e.entry < 0 {
+                continue;
+            }
+            var alpha: f32;
+            if k == last {
+                alpha = alpha_for(e.entry, len);
+            } else {
+                alpha = 1.0 - exp(-lut_entry(e.entry).w * P.inv_spacing.w);
+            }
+            if alpha > 0.0 && add(e.rgb, alpha) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
