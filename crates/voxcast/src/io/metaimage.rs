@@ -323,7 +323,7 @@ fn parse_pattern(path: &Path, edf: &str, sizes: &[u64]) -> Result<Pattern> {
     let step = nums.get(2).copied().unwrap_or(1);
     let count = match nums.get(1) {
         None => slices,
-        Some(&max) => pattern_len(min, max, step).ok_or_else(|| {
+        Some(&max) => crate::io::util::pattern_count(min, max, step).ok_or_else(|| {
             Error::format(
                 path,
                 field,
@@ -341,17 +341,6 @@ fn parse_pattern(path: &Path, edf: &str, sizes: &[u64]) -> Result<Pattern> {
         count,
         subdim: Some(sizes.len().saturating_sub(1).max(1)),
     })
-}
-
-fn pattern_len(min: i64, max: i64, step: i64) -> Option<u64> {
-    if step == 0 {
-        return None;
-    }
-    let span = max.checked_sub(min)?;
-    if span != 0 && (span < 0) != (step < 0) {
-        return None;
-    }
-    u64::try_from(span.checked_div(step)?).ok()?.checked_add(1)
 }
 
 #[derive(Clone, Copy, Debug)]

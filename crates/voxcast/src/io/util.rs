@@ -266,6 +266,19 @@ fn trim_zeros(d: &[u8]) -> &[u8] {
     &d[z..]
 }
 
+/// Number of indices in `min, min+step, … max` (the file-name patterns of
+/// NRRD's and MetaImage's multi-file data), or `None` when they go nowhere.
+pub(crate) fn pattern_count(min: i64, max: i64, step: i64) -> Option<u64> {
+    if step == 0 {
+        return None;
+    }
+    let span = max.checked_sub(min)?;
+    if span != 0 && (span < 0) != (step < 0) {
+        return None;
+    }
+    u64::try_from(span.checked_div(step)?).ok()?.checked_add(1)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

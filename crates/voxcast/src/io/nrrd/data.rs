@@ -92,7 +92,7 @@ pub(super) fn data_files(path: &Path, header: &Header) -> Result<DataFiles> {
     let fmt = words.first().filter(|w| w.contains('%'));
     if let (Some(fmt), [Some(min), Some(max), Some(step)]) = (fmt, ints.as_slice()) {
         let (min, max, step) = (*min, *max, *step);
-        let count = pattern_count(min, max, step).ok_or_else(|| {
+        let count = crate::io::util::pattern_count(min, max, step).ok_or_else(|| {
             Error::format(
                 path,
                 field,
@@ -109,18 +109,6 @@ pub(super) fn data_files(path: &Path, header: &Header) -> Result<DataFiles> {
         }));
     }
     Ok(DataFiles::Single(value.to_string()))
-}
-
-/// Number of indices in `min, min+step, … max`, or `None` when they go nowhere.
-fn pattern_count(min: i64, max: i64, step: i64) -> Option<u64> {
-    if step == 0 {
-        return None;
-    }
-    let span = max.checked_sub(min)?;
-    if span != 0 && (span < 0) != (step < 0) {
-        return None;
-    }
-    u64::try_from(span.checked_div(step)?).ok()?.checked_add(1)
 }
 
 /// How the bytes of every data file are laid out.

@@ -190,14 +190,15 @@ mod tests {
     use flate2::Compression;
     use std::io::Write;
 
-    fn attached(header: &str, data: &[u8]) -> Vec<u8> {
+    /// A header and its data in one attached file.
+    pub(super) fn attached(header: &str, data: &[u8]) -> Vec<u8> {
         let mut v = header.as_bytes().to_vec();
         v.push(b'\n');
         v.extend_from_slice(data);
         v
     }
 
-    fn gzip(data: &[u8]) -> Vec<u8> {
+    pub(super) fn gzip(data: &[u8]) -> Vec<u8> {
         let mut e = GzEncoder::new(Vec::new(), Compression::default());
         e.write_all(data).unwrap();
         e.finish().unwrap()

@@ -2,24 +2,9 @@
 //! than the header says, spacings, magic, the byte-skip message.
 
 use super::read;
+use super::tests::{attached, gzip};
 use crate::io::test_support::{err_naming, write};
-use flate2::write::GzEncoder;
-use flate2::Compression;
 use glam::Vec3;
-use std::io::Write;
-
-fn attached(header: &str, data: &[u8]) -> Vec<u8> {
-    let mut v = header.as_bytes().to_vec();
-    v.push(b'\n');
-    v.extend_from_slice(data);
-    v
-}
-
-fn gzip(data: &[u8]) -> Vec<u8> {
-    let mut e = GzEncoder::new(Vec::new(), Compression::default());
-    e.write_all(data).unwrap();
-    e.finish().unwrap()
-}
 
 #[test]
 fn the_none_axis_is_dropped_wherever_it_is() {
