@@ -427,16 +427,9 @@ pub struct RenderArgs {
     /// [render.threshold] and [render.lod] in a scene file.
     #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
     pub method: Option<String>,
-    /// Where to render: cpu (the multi-threaded CPU ray caster), gpu (the
-    /// wgpu compute-shader ray caster on any Vulkan adapter, software ones
-    /// such as lavapipe included; WGPU_BACKEND is honoured; with no adapter
-    /// this is an error naming what was tried, never a silent fallback), or
-    /// auto (a hardware GPU if there is one, else the CPU; the choice is
-    /// printed). The GPU renders uniform, adaptive, adaptive-max, threshold,
-    /// jitter, stratified, mc and single-scatter, opaque boxes and planes (not
-    /// OBJ meshes), volumes beyond its 3D texture limit in bricks, and gives
-    /// the same picture as the CPU (PSNR ≥ 40 dB).
-    #[arg(long, value_enum, default_value = "cpu", help_heading = "Device")]
+    /// Where to render: cpu, gpu or auto (--help says which methods the GPU
+    /// has).
+    #[arg(long, value_enum, default_value = "cpu", help_heading = "Device", long_help = device_help(""))]
     pub device: DeviceArg,
 }
 
@@ -495,16 +488,9 @@ pub struct BenchArgs {
     /// No messages on stderr (the table still goes to stdout).
     #[arg(short, long)]
     pub quiet: bool,
-    /// Where to render the methods (the reference is always rendered on the CPU): cpu (the multi-threaded CPU ray caster), gpu (the
-    /// wgpu compute-shader ray caster on any Vulkan adapter, software ones
-    /// such as lavapipe included; WGPU_BACKEND is honoured; with no adapter
-    /// this is an error naming what was tried, never a silent fallback), or
-    /// auto (a hardware GPU if there is one, else the CPU; the choice is
-    /// printed). The GPU renders uniform, adaptive, adaptive-max, threshold,
-    /// jitter, stratified, mc and single-scatter, opaque boxes and planes (not
-    /// OBJ meshes), volumes beyond its 3D texture limit in bricks, and gives
-    /// the same picture as the CPU (PSNR ≥ 40 dB).
-    #[arg(long, value_enum, default_value = "cpu", help_heading = "Device")]
+    /// Where to render the methods: cpu, gpu or auto (the reference is always
+    /// rendered on the CPU; --help says which methods the GPU has).
+    #[arg(long, value_enum, default_value = "cpu", help_heading = "Device", long_help = device_help("Where to render the methods (the reference is always rendered on the CPU; under gpu, a method the GPU lacks is reported as failed in the table). "))]
     pub device: DeviceArg,
 }
 
@@ -514,6 +500,27 @@ pub enum DeviceArg {
     Cpu,
     Gpu,
     Auto,
+}
+
+impl From<DeviceArg> for voxcast_gpu::DeviceRequest {
+    fn from(d: DeviceArg) -> Self {
+        match d {
+            DeviceArg::Cpu => voxcast_gpu::DeviceRequest::Cpu,
+            DeviceArg::Gpu => voxcast_gpu::DeviceRequest::Gpu,
+            DeviceArg::Auto => voxcast_gpu::DeviceRequest::Auto,
+        }
+    }
+}
+
+/// `--device`'s long help, after `intro`: the GPU's methods come from the
+/// one table (`voxcast::render::Backend`), so the help cannot drift from
+/// what the GPU renders.
+fn device_help(intro: &str) -> String {
+    use voxcast::render::Backend;
+    format!(
+        "{intro}cpu: the multi-threaded CPU ray caster. gpu: the wgpu compute-shader ray caster on any Vulkan adapter, software ones such as lavapipe included (WGPU_BACKEND is honoured); with no adapter this is an error naming what was tried, never a silent fallback. auto: a hardware GPU if there is one and it renders the scene, else the CPU (a software rasteriser is slower than the CPU renderer); the choice is printed.\n\nThe GPU renders {}; opaque boxes and planes (not OBJ meshes); volumes beyond its 3D texture limit in up to eight bricks; and gives the CPU's picture (PSNR ≥ 40 dB). The CPU renders every method.",
+        Backend::Gpu.method_list()
+    )
 }
 
 #[derive(Args)]
@@ -544,13 +551,9 @@ pub struct ViewArgs {
     /// Write what a scripted run measured as JSON.
     #[arg(long, value_name = "FILE", help_heading = "Scripted use")]
     pub stats_json: Option<PathBuf>,
-    /// Which renderer draws the frames: `auto` (default) takes a hardware
-    /// GPU when there is one and the CPU otherwise (a software rasteriser such
-    /// as lavapipe is slower than the CPU renderer); `gpu` takes any Vulkan
-    /// adapter, software ones included, and fails if there is none; `cpu` is
-    /// the CPU renderer. On the GPU, methods it lacks (threshold, importance,
-    /// lod, single-scatter, path) and opaque geometry are drawn by the CPU.
-    #[arg(long, value_enum, default_value = "auto", help_heading = "Device")]
+    /// Which renderer draws the frames: auto (default), gpu or cpu (--help
+    /// says which methods the GPU has).
+    #[arg(long, value_enum, default_value = "auto", help_heading = "Device", long_help = device_help("Which renderer draws the frames (on the GPU, the methods it lacks and triangle meshes are drawn by the CPU, frame by frame). "))]
     pub device: DeviceArg,
 }
 

@@ -20,6 +20,7 @@ use std::time::{Duration, Instant};
 use voxcast::files::Outputs;
 use voxcast::scene::Scene;
 use voxcast::{metrics, Image};
+use voxcast_gpu::Device;
 
 fn main() {
     let cli = Cli::parse();
@@ -89,7 +90,12 @@ fn render(a: RenderArgs) -> Result<()> {
             bar.set_draw_target(ProgressDrawTarget::stderr());
         }
     };
-    let device = pick_device(a.device, &scene, prepared.geometry.as_deref(), quiet)?;
+    let device = pick_device(
+        a.device,
+        &[scene.render.method],
+        prepared.geometry.as_deref(),
+        quiet,
+    )?;
     let (image, stats) = match &device {
         Device::Cpu => scene.render(&prepared, &progress)?,
         Device::Gpu(ctx) => gpu_renderer(ctx, &prepared)?
@@ -132,86 +138,21 @@ fn render(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The renderer `--device` chose.
-enum Device {
-    Cpu,
-    Gpu(std::sync::Arc<voxcast_gpu::GpuContext>),
-}
-
-impl Device {
-    fn describe(&self) -> String {
-        match self {
-            Device::Cpu => format!(
-                "cpu ({} threads)",
-                std::thread::available_parallelism().map_or(1, |n| n.get())
-            ),
-            Device::Gpu(ctx) => format!("gpu: {}", ctx.info()),
-        }
-    }
-}
-
-/// Resolves `--device` for `scene`: `gpu` must find an adapter (the error
-/// names the backends and adapters tried); `auto` takes a hardware GPU when
-/// there is one and it renders the scene's method, else the CPU, and says
-/// which. Triangle meshes in `geometry` are CPU-only (boxes and planes are
-/// fine on the GPU).
+/// Resolves `--device` with the one choice of `voxcast_gpu::choose` and
+/// prints its reason unless `quiet`.
 fn pick_device(
     arg: args::DeviceArg,
-    scene: &Scene,
+    methods: &[voxcast::render::Method],
     geometry: Option<&voxcast::geometry::Geometry>,
     quiet: bool,
 ) -> Result<Device> {
-    use voxcast_gpu::{DeviceChoice, GpuContext, GpuError, GpuRenderer};
-    match arg {
-        args::DeviceArg::Cpu => Ok(Device::Cpu),
-        args::DeviceArg::Gpu => {
-            if !voxcast_gpu::supports(scene.render.method) {
-                bail!(
-                    "--device gpu: method `{}` is not implemented on the GPU (it renders uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter); use --device cpu or auto",
-                    scene.render.method.name()
-                );
-            }
-            let ctx = GpuContext::new(DeviceChoice::Gpu).context("--device gpu")?;
-            if !quiet {
-                eprintln!("rendering on {}", ctx.info());
-            }
-            Ok(Device::Gpu(ctx))
-        }
-        args::DeviceArg::Auto => {
-            if !voxcast_gpu::supports(scene.render.method) {
-                if !quiet {
-                    eprintln!(
-                        "--device auto: method `{}` has no GPU version; rendering on the CPU",
-                        scene.render.method.name()
-                    );
-                }
-                return Ok(Device::Cpu);
-            }
-            if !GpuRenderer::supports_geometry(geometry) {
-                if !quiet {
-                    eprintln!(
-                        "--device auto: triangle meshes have no GPU version; rendering on the CPU"
-                    );
-                }
-                return Ok(Device::Cpu);
-            }
-            match GpuContext::new(DeviceChoice::Auto) {
-                Ok(ctx) => {
-                    if !quiet {
-                        eprintln!("--device auto: rendering on {}", ctx.info());
-                    }
-                    Ok(Device::Gpu(ctx))
-                }
-                Err(GpuError::NoAdapter(why)) => {
-                    if !quiet {
-                        eprintln!("--device auto: {why}; rendering on the CPU");
-                    }
-                    Ok(Device::Cpu)
-                }
-                Err(e) => Err(e).context("--device auto"),
-            }
-        }
+    let request = voxcast_gpu::DeviceRequest::from(arg);
+    let choice = voxcast_gpu::choose(request, methods, geometry)
+        .with_context(|| format!("--device {}", request.name()))?;
+    if let (Some(note), false) = (&choice.note, quiet) {
+        eprintln!("{note}");
     }
+    Ok(choice.device)
 }
 
 /// Uploads the prepared volume to the GPU.
@@ -267,30 +208,11 @@ fn view(a: ViewArgs) -> Result<()> {
     if !scripted && (a.save_scene.is_some() || a.stats_json.is_some()) {
         bail!("--save-scene and --stats-json belong to a scripted run: add --screenshot FILE, --exit-after-frames N or --orbit S (in the window, use the Save buttons)");
     }
-    let backend = match a.device {
-        args::DeviceArg::Cpu => voxcast_view::Backend::Cpu,
-        args::DeviceArg::Gpu => {
-            let ctx = voxcast_gpu::GpuContext::new(voxcast_gpu::DeviceChoice::Gpu)
-                .context("--device gpu")?;
-            eprintln!("view: rendering on {}", ctx.info());
-            voxcast_view::Backend::Gpu(ctx)
-        }
-        args::DeviceArg::Auto => {
-            match voxcast_gpu::GpuContext::new(voxcast_gpu::DeviceChoice::Auto) {
-                Ok(ctx) => {
-                    eprintln!("view: --device auto: rendering on {}", ctx.info());
-                    voxcast_view::Backend::Gpu(ctx)
-                }
-                Err(voxcast_gpu::GpuError::NoAdapter(why)) => {
-                    eprintln!("view: --device auto: {why}; rendering on the CPU");
-                    voxcast_view::Backend::Cpu
-                }
-                Err(e) => return Err(e).context("--device auto"),
-            }
-        }
-    };
+    // The viewer draws what the GPU lacks on the CPU, frame by frame: no
+    // method or geometry decides the device here.
+    let device = pick_device(a.device, &[], None, false)?;
     let options = voxcast_view::ViewOptions {
-        backend,
+        device,
         screenshot: a.screenshot.clone(),
         exit_after_frames: a.exit_after_frames,
         save_scene: a.save_scene.clone(),
@@ -371,15 +293,12 @@ fn bench(a: BenchArgs) -> Result<()> {
     }
     // `auto` picks the CPU when any method has no GPU version; under `gpu`
     // such a method is reported as failed in the table (the baseline
-    // `uniform` always renders).
-    let mut device_scene = scene.clone();
-    device_scene.render.method = voxcast::render::Method::Uniform;
-    if a.device == args::DeviceArg::Auto {
-        if let Some(m) = methods.iter().find(|m| !voxcast_gpu::supports(m.method)) {
-            m.apply(&mut device_scene.render);
-        }
-    }
-    let device = pick_device(a.device, &device_scene, prepared.geometry.as_deref(), quiet)?;
+    // `uniform` always renders), so none is passed.
+    let needs: Vec<_> = match a.device {
+        args::DeviceArg::Auto => methods.iter().map(|m| m.method).collect(),
+        _ => Vec::new(),
+    };
+    let device = pick_device(a.device, &needs, prepared.geometry.as_deref(), quiet)?;
     let gpu = match &device {
         Device::Cpu => None,
         Device::Gpu(ctx) => Some(GpuMethods {

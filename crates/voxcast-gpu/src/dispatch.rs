@@ -4,15 +4,14 @@
 use std::time::Instant;
 
 use voxcast::camera::{Camera, CameraParams, Projection};
-use voxcast::render::{Method, OpticalModel, Order, RenderParams, RenderStats};
+use voxcast::render::{Method, Order, RenderParams, RenderStats};
 use voxcast::transfer::{srgb_to_linear, Lut, TransferFunction, LUT_SIZE};
 use voxcast::Image;
 use wgpu::util::DeviceExt;
 
 use crate::context::{read_back, GpuError};
-use crate::renderer::{
-    method_code, GpuRenderer, Params, F_GROUPED, F_JITTER, F_SHADING, F_SKIP, PASSES_PER_DISPATCH,
-};
+use crate::params::{optical_code, Params, GROUPED, JITTER, SHADING, SKIP};
+use crate::renderer::{method_code, GpuRenderer, PASSES_PER_DISPATCH};
 use crate::scene::SceneData;
 
 impl GpuRenderer {
@@ -134,95 +133,69 @@ impl GpuRenderer {
         };
         let mut flags = 0;
         if params.shading {
-            flags |= F_SHADING;
+            flags |= SHADING;
         }
         if params.grouped {
-            flags |= F_GROUPED;
+            flags |= GROUPED;
         }
         if jitter {
-            flags |= F_JITTER;
+            flags |= JITTER;
         }
         if params.skip_empty {
-            flags |= F_SKIP;
+            flags |= SKIP;
         }
         let seed = params.seed;
         let sm = voxcast::render::rng::splitmix(seed);
-        let scene = SceneData::new(geometry, &cam, params, &self.volume, &blocks.grid);
         let bg = params.background.map(srgb_to_linear);
         let mut p = Params {
-            eye: [
-                cam.eye.x,
-                cam.eye.y,
-                cam.eye.z,
-                (projection == Projection::Orthographic) as u32 as f32,
-            ],
-            forward: [cam.forward.x, cam.forward.y, cam.forward.z, sx],
-            right: [cam.right.x, cam.right.y, cam.right.z, sy],
-            up: [cam.up.x, cam.up.y, cam.up.z, 0.0],
-            origin_w: [origin.x, origin.y, origin.z, unit],
-            inv_spacing: [inv.x, inv.y, inv.z, params.step],
-            box_lo: [box_lo.x, box_lo.y, box_lo.z, ert],
-            box_hi: [box_hi.x, box_hi.y, box_hi.z, params.adaptive.k_ref],
+            eye: cam.eye.to_array(),
+            orthographic: (projection == Projection::Orthographic) as u32,
+            forward: cam.forward.to_array(),
+            half_width: sx,
+            right: cam.right.to_array(),
+            half_height: sy,
+            up: cam.up.to_array(),
+            step: params.step,
+            origin: origin.to_array(),
+            unit,
+            inv_spacing: inv.to_array(),
+            value_scale: self.scale,
             grid_max: [
                 (dims[0] - 1) as f32,
                 (dims[1] - 1) as f32,
                 (dims[2] - 1) as f32,
-                self.scale,
             ],
-            background: [bg[0], bg[1], bg[2], self.offset],
-            dims: [
-                dims[0] as u32,
-                dims[1] as u32,
-                dims[2] as u32,
-                block_size as u32,
-            ],
-            counts: [counts[0] as u32, counts[1] as u32, counts[2] as u32, method],
-            size: [w, h, passes, flags],
-            seed: [
-                seed as u32,
-                (seed >> 32) as u32,
-                sm as u32,
-                (sm >> 32) as u32,
-            ],
-            levels: [
-                level_lo,
-                level_hi,
-                match params.optical {
-                    OpticalModel::AbsorptionOnly => 0,
-                    OpticalModel::EmissionOnly => 1,
-                    OpticalModel::EmissionAbsorption => 2,
-                },
-                0,
-            ],
-            geo: scene.geo,
-            surf_dir: scene.surf_dir,
-            surf_k: scene.surf_k,
-            med_offset: scene.med_offset,
-            med_scale: scene.med_scale,
-            med_hi: scene.med_hi,
-            med_albedo: scene.med_albedo,
-            med_flags: scene.med_flags,
-            bricks: [
-                self.bricking.counts[0] as u32,
-                self.bricking.counts[1] as u32,
-                self.bricking.counts[2] as u32,
-                self.bricking.len() as u32,
-            ],
-            brick_cells: [
-                self.bricking.cells[0] as u32,
-                self.bricking.cells[1] as u32,
-                self.bricking.cells[2] as u32,
-                0,
-            ],
-            chunk: [0, passes, 0, 0],
-            thresh: [
-                params.threshold.bounds[0],
-                params.threshold.bounds[1],
-                params.threshold.steps[0],
-                params.threshold.steps[1],
-            ],
-            thresh2: [params.threshold.steps[2], 0.0, 0.0, 0.0],
+            value_offset: self.offset,
+            box_lo: box_lo.to_array(),
+            ert,
+            box_hi: box_hi.to_array(),
+            k_ref: params.adaptive.k_ref,
+            dims: dims.map(|d| d as u32),
+            block_size: block_size as u32,
+            block_counts: counts.map(|c| c as u32),
+            method,
+            bricks: self.bricking.counts.map(|c| c as u32),
+            brick_count: self.bricking.len() as u32,
+            brick_cells: self.bricking.cells.map(|c| c as u32),
+            flags,
+            width: w,
+            height: h,
+            passes,
+            first_pass: 0,
+            seed: [seed as u32, (seed >> 32) as u32],
+            seed_mixed: [sm as u32, (sm >> 32) as u32],
+            end_pass: passes,
+            level_lo,
+            level_hi,
+            optical: optical_code(params.optical),
+            thresh_lo: params.threshold.bounds[0],
+            thresh_hi: params.threshold.bounds[1],
+            thresh_step0: params.threshold.steps[0],
+            thresh_step1: params.threshold.steps[1],
+            thresh_step2: params.threshold.steps[2],
+            ..bytemuck::Zeroable::zeroed()
         };
+        let scene = SceneData::new(&mut p, geometry, &cam, params, &self.volume, &blocks.grid);
         let records = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("shapes and lights"),
             contents: bytemuck::cast_slice(&scene.records),
@@ -315,7 +288,7 @@ impl GpuRenderer {
         let mut first = 0;
         while first < passes {
             let end = (first + PASSES_PER_DISPATCH).min(passes);
-            p.chunk = [first, end, 0, 0];
+            (p.first_pass, p.end_pass) = (first, end);
             queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
             let mut enc = device.create_command_encoder(&Default::default());
             {

@@ -61,16 +61,29 @@
 //!
 //! Not yet: `importance`, `lod`, `path`, triangle meshes (OBJ),
 //! volumes that need more than eight bricks; each is refused with an error
-//! naming it.
+//! naming it. The table of what each back end renders is the core's
+//! [`voxcast::render::Backend`]; [`choose`] resolves `--device
+//! cpu|gpu|auto` with it for every front end.
+//!
+//! # The contract with the shader
+//!
+//! The uniform block `Params` is a Rust struct (`params.rs`) from which the
+//! WGSL `struct Params` and the shader's constants (method codes, optical
+//! models, flag bits) are generated; a test checks its layout against
+//! naga's. The shader itself is `shader/*.wgsl`, split by concern, each
+//! function naming the Rust function it mirrors.
 
+mod backend;
 mod context;
 mod dispatch;
+mod params;
 mod renderer;
 mod scene;
 mod upload;
 
+pub use backend::{choose, Choice, Device, DeviceRequest};
 pub use context::{
     adapter_info, compiled_backends, AdapterSummary, DeviceChoice, GpuContext, GpuError,
 };
-pub use renderer::{supports, GpuRenderer};
+pub use renderer::GpuRenderer;
 pub use upload::{Bricking, TEXTURE_LIMIT_ENV};

@@ -8,68 +8,19 @@ use std::sync::{Arc, Mutex};
 
 use voxcast::camera::CameraParams;
 use voxcast::render::blocks::{BuildBlocks, BuildMaxGradient, DEFAULT_BLOCK};
-use voxcast::render::{BlockGrid, Method, RenderParams, RenderStats};
+use voxcast::render::{Backend, BlockGrid, Method, RenderParams, RenderStats};
 use voxcast::transfer::{TransferFunction, LUT_SIZE};
 use voxcast::volume::Volume;
 use voxcast::Image;
 use wgpu::util::DeviceExt;
 
 use crate::context::{scoped, GpuContext, GpuError};
+use crate::params::Params;
 use crate::upload::{env_texture_limit, texels, Bricking};
 
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-pub(crate) struct Params {
-    pub(crate) eye: [f32; 4],
-    pub(crate) forward: [f32; 4],
-    pub(crate) right: [f32; 4],
-    pub(crate) up: [f32; 4],
-    pub(crate) origin_w: [f32; 4],
-    pub(crate) inv_spacing: [f32; 4],
-    pub(crate) box_lo: [f32; 4],
-    pub(crate) box_hi: [f32; 4],
-    pub(crate) grid_max: [f32; 4],
-    pub(crate) background: [f32; 4],
-    pub(crate) dims: [u32; 4],
-    pub(crate) counts: [u32; 4],
-    pub(crate) size: [u32; 4],
-    pub(crate) seed: [u32; 4],
-    pub(crate) levels: [i32; 4],
-    /// Geometry and lights: shape records, shadows, light records, phase kind.
-    pub(crate) geo: [u32; 4],
-    /// Surface key light: direction towards it; w unused.
-    pub(crate) surf_dir: [f32; 4],
-    /// Surface Blinn–Phong: ambient, diffuse, specular, shininess.
-    pub(crate) surf_k: [f32; 4],
-    /// Medium: world → voxel offset, w: σ_t at density 1.
-    pub(crate) med_offset: [f32; 4],
-    /// Medium: world → voxel scale, w: phase parameter (g or k).
-    pub(crate) med_scale: [f32; 4],
-    /// Medium: the box's far corner (voxels), w: global majorant.
-    pub(crate) med_hi: [f32; 4],
-    /// Medium: albedo, w: 1 for the global majorant, 0 for the grid.
-    pub(crate) med_albedo: [f32; 4],
-    /// Medium: has infinite lights, unused ×3.
-    pub(crate) med_flags: [u32; 4],
-    /// Bricks per axis, w: their product.
-    pub(crate) bricks: [u32; 4],
-    /// Cells per brick along each axis.
-    pub(crate) brick_cells: [u32; 4],
-    /// The passes of one dispatch: first, end (exclusive).
-    pub(crate) chunk: [u32; 4],
-    /// Threshold: range bounds, steps of ranges 0 and 1 (voxels).
-    pub(crate) thresh: [f32; 4],
-    /// Threshold: step of range 2 (voxels).
-    pub(crate) thresh2: [f32; 4],
-}
-
-/// Passes per dispatch of the progressive methods: a render of many passes
-/// is split into dispatches of at most this many, each adding to the sums
-/// the one before left, so no single dispatch runs long enough to trip a
-/// GPU watchdog (about 2 s on desktop drivers).
-/// The ray caster's WGSL: the files of `shader/`, concatenated (WGSL has
-/// no imports; each file names the Rust it mirrors).
-const SHADER: &str = concat!(
+/// The shader files of `shader/`, concatenated in this order (WGSL has no
+/// imports; each file names the Rust it mirrors).
+const SHADER_FILES: &str = concat!(
     include_str!("shader/params.wgsl"),
     include_str!("shader/random.wgsl"),
     include_str!("shader/volume.wgsl"),
@@ -79,48 +30,34 @@ const SHADER: &str = concat!(
     include_str!("shader/main.wgsl"),
 );
 
+/// The ray caster's WGSL: the generated prelude (`Params` and the
+/// constants, [`crate::params::prelude`]) and the files of `shader/`.
+pub(crate) fn shader_source() -> String {
+    crate::params::prelude() + SHADER_FILES
+}
+
+/// Passes per dispatch of the progressive methods: a render of many passes
+/// is split into dispatches of at most this many, each adding to the sums
+/// the one before left, so no single dispatch runs long enough to trip a
+/// GPU watchdog (about 2 s on desktop drivers).
 pub(crate) const PASSES_PER_DISPATCH: u32 = 8;
 
 /// Texture slots for bricks (bindings 1 and 9…15).
 pub(crate) const MAX_BRICKS: usize = 8;
-/// `vec4` records per shape and per light in the scene buffer.
-pub(crate) const SHAPE_WORDS: usize = 6;
-pub(crate) const LIGHT_WORDS: usize = 4;
 
-pub(crate) const F_SHADING: u32 = 1;
-pub(crate) const F_GROUPED: u32 = 2;
-pub(crate) const F_JITTER: u32 = 4;
-pub(crate) const F_SKIP: u32 = 8;
-
-/// The shader's method numbers.
+/// The method's code for the shader, or the refusal of a method the GPU
+/// lacks (the table is [`Backend::renders`]).
 pub(crate) fn method_code(m: Method) -> Result<u32, GpuError> {
-    Ok(match m {
-        Method::Uniform => 0,
-        Method::Adaptive => 1,
-        Method::AdaptiveMax => 2,
-        Method::Jitter => 3,
-        Method::Mc => 4,
-        Method::Stratified => 5,
-        Method::SingleScatter => 6,
-        Method::Threshold => 7,
-        other => {
-            return Err(GpuError::Unsupported(format!(
-                "method `{}` (the GPU renders uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter; use --device cpu for `{}`)",
-                other.name(),
-                other.name()
-            )))
-        }
-    })
-}
-
-/// Whether the GPU back end renders `method`: `uniform`, `adaptive`,
-/// `adaptive-max`, `threshold`, `jitter`, `stratified`, `mc` and
-/// `single-scatter` (not `importance`, `lod`, `path`). Opaque geometry is a separate
-/// question, [`GpuRenderer::supports_geometry`]: boxes and planes yes,
-/// triangle meshes no (`single-scatter` takes no geometry on either back
-/// end).
-pub fn supports(method: Method) -> bool {
-    method_code(method).is_ok()
+    if Backend::Gpu.renders(m) {
+        Ok(m.code())
+    } else {
+        Err(GpuError::Unsupported(format!(
+            "method `{}` (the GPU renders {}; use --device cpu for `{}`)",
+            m.name(),
+            Backend::Gpu.method_list(),
+            m.name()
+        )))
+    }
 }
 
 /// The block grid of one block size, with its GPU buffers.
@@ -304,7 +241,7 @@ impl GpuRenderer {
         let lut_view = lut_texture.create_view(&Default::default());
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("voxcast ray caster (shader/*.wgsl)"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
         let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
             binding,
@@ -420,7 +357,7 @@ impl GpuRenderer {
         let Some(g) = geometry.filter(|g| !g.is_empty()) else {
             return Ok(self);
         };
-        if g.counts()[2] > 0 {
+        if !Backend::Gpu.renders_geometry(Some(g)) {
             return Err(GpuError::Unsupported(format!(
                 "triangle meshes (OBJ: {} meshes, {} triangles) are rendered on the CPU only; use --device cpu (boxes and planes are fine on the GPU)",
                 g.counts()[2],
@@ -429,11 +366,6 @@ impl GpuRenderer {
         }
         self.geometry = Some(g.clone());
         Ok(self)
-    }
-
-    /// Whether the GPU renders `geometry` (boxes and planes; not meshes).
-    pub fn supports_geometry(geometry: Option<&voxcast::geometry::Geometry>) -> bool {
-        geometry.is_none_or(|g| g.counts()[2] == 0)
     }
 
     /// How the volume was split into bricks (one brick when it fits).

@@ -5,25 +5,20 @@ use voxcast::camera::Camera;
 use voxcast::render::{BlockGrid, RenderParams};
 use voxcast::volume::Volume;
 
-use crate::renderer::{LIGHT_WORDS, SHAPE_WORDS};
+use crate::params::{Params, LIGHT_WORDS, SHAPE_WORDS};
 
 /// What a render needs besides the volume: the shapes and lights in one
-/// buffer of `vec4` records, the medium and the majorant.
+/// buffer of `vec4` records, and the majorant grid.
 pub(crate) struct SceneData {
-    pub(crate) geo: [u32; 4],
-    pub(crate) surf_dir: [f32; 4],
-    pub(crate) surf_k: [f32; 4],
-    pub(crate) med_offset: [f32; 4],
-    pub(crate) med_scale: [f32; 4],
-    pub(crate) med_hi: [f32; 4],
-    pub(crate) med_albedo: [f32; 4],
-    pub(crate) med_flags: [u32; 4],
     pub(crate) records: Vec<[f32; 4]>,
     pub(crate) majorant: Vec<f32>,
 }
 
 impl SceneData {
+    /// Packs the scene's shapes, lights and medium: the records and the
+    /// majorant grid returned, their counts and parameters written to `p`.
     pub(crate) fn new(
+        p: &mut Params,
         geometry: Option<&voxcast::geometry::Geometry>,
         cam: &Camera,
         params: &RenderParams,
@@ -36,7 +31,7 @@ impl SceneData {
         let v4 = |v: glam::Vec3, w: f32| [v.x, v.y, v.z, w];
         let mut records = Vec::new();
         let mut shapes = 0;
-        let mut surf_dir = [0.0; 4];
+        let mut surf_dir = [0.0; 3];
         let mut surf_k = [0.0; 4];
         let mut shadows = 0;
         if let Some(g) = geometry {
@@ -66,7 +61,7 @@ impl SceneData {
                 shapes += 1;
             }
             let light = voxcast::geometry::SurfaceLight::new(g.light, cam);
-            surf_dir = v4(light.to_light, 0.0);
+            surf_dir = light.to_light.to_array();
             surf_k = [
                 light.ambient,
                 light.diffuse,
@@ -141,20 +136,23 @@ impl SceneData {
         } else {
             (vec![0.0], 0.0)
         };
+        p.shapes = shapes as u32;
+        p.shadows = shadows;
+        p.lights = lights.len() as u32;
+        p.phase = phase_kind;
+        p.phase_g = phase_arg;
+        p.surf_dir = surf_dir;
+        p.surf_k = surf_k;
+        p.med_offset = offset.to_array();
+        p.sigma_t = medium.scale;
+        p.med_scale = scale_v.to_array();
+        p.med_hi = hi.to_array();
+        p.majorant = global;
+        p.med_albedo = medium.albedo;
+        p.global_majorant =
+            (medium.majorant == voxcast::render::medium::MajorantKind::Global) as u32;
+        p.infinite_lights = lights.iter().any(|l| !l.is_delta()) as u32;
         SceneData {
-            geo: [shapes as u32, shadows, lights.len() as u32, phase_kind],
-            surf_dir,
-            surf_k,
-            med_offset: v4(offset, medium.scale),
-            med_scale: v4(scale_v, phase_arg),
-            med_hi: v4(hi, global),
-            med_albedo: [
-                medium.albedo[0],
-                medium.albedo[1],
-                medium.albedo[2],
-                (medium.majorant == voxcast::render::medium::MajorantKind::Global) as u32 as f32,
-            ],
-            med_flags: [lights.iter().any(|l| !l.is_delta()) as u32, 0, 0, 0],
             records,
             majorant: if majorant.is_empty() {
                 vec![0.0]

@@ -511,7 +511,7 @@ fn meshes_are_refused_by_name() {
     let prepared = scene.prepare().unwrap();
     let g = prepared.geometry.clone().expect("geometry");
     assert!(g.counts()[2] > 0);
-    assert!(!GpuRenderer::supports_geometry(Some(&g)));
+    assert!(!voxcast::render::Backend::Gpu.renders_geometry(Some(&g)));
     let e = GpuRenderer::new(ctx, &prepared.volume, prepared.window)
         .unwrap()
         .with_geometry(Some(&g))

@@ -6,7 +6,6 @@
 //! view, the stats bar and the control panel; `script` runs `--orbit`,
 //! `--screenshot` and `--script-stats`.
 
-use crate::backend::Backend;
 use crate::camera_ctl::OrbitController;
 use crate::image_paint::{self, PaintImage};
 use crate::progressive::{frame_params, Quality, Scheduler};
@@ -24,6 +23,7 @@ use voxcast::scene::Scene;
 use voxcast::transfer::TransferFunction;
 use voxcast::volume::Series;
 use voxcast::Volume;
+use voxcast_gpu::Device;
 
 mod panels;
 mod script;
@@ -105,7 +105,7 @@ struct Script {
 
 pub struct ViewerApp {
     scene: Scene,
-    backend: Backend,
+    device: Device,
     tf: TfModel,
     tf_state: TfWidgetState,
     preset: String,
@@ -180,7 +180,7 @@ impl ViewerApp {
             None => (Source::Single, 0),
         };
         let worker = Worker::spawn(
-            options.backend.clone(),
+            options.device.clone(),
             source,
             frame,
             volume.clone(),
@@ -215,7 +215,7 @@ impl ViewerApp {
         };
         ViewerApp {
             params: scene.render.clone(),
-            backend: options.backend.clone(),
+            device: options.device.clone(),
             tf: TfModel::new(&tf),
             tf_state: TfWidgetState::default(),
             preset,

@@ -13,38 +13,16 @@ use std::sync::atomic::AtomicBool;
 use std::sync::Arc;
 use voxcast::camera::CameraParams;
 use voxcast::geometry::Geometry;
-use voxcast::render::{RenderParams, Renderer};
+use voxcast::render::{Backend, RenderParams, Renderer};
 use voxcast::transfer::TransferFunction;
 use voxcast::{Image, RenderStats, Volume};
-use voxcast_gpu::{GpuContext, GpuRenderer};
+use voxcast_gpu::{Device, GpuRenderer};
 
-/// Which renderer draws the frames.
-#[derive(Clone, Default)]
-pub enum Backend {
-    /// The CPU ray caster (`voxcast::render`), the same as `voxcast render`.
-    #[default]
-    Cpu,
-    /// The GPU ray caster (`voxcast-gpu`) on this adapter; the CPU for the
-    /// methods it does not have.
-    Gpu(Arc<GpuContext>),
-}
-
-impl std::fmt::Debug for Backend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Backend::Cpu => f.write_str("Cpu"),
-            Backend::Gpu(ctx) => write!(f, "Gpu({})", ctx.info()),
-        }
-    }
-}
-
-impl Backend {
-    /// The name shown in the stats bar.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Backend::Cpu => "CPU",
-            Backend::Gpu(_) => "GPU",
-        }
+/// The name shown in the stats bar: `CPU` or `GPU`.
+pub fn label(device: &Device) -> &'static str {
+    match device.backend() {
+        Backend::Cpu => "CPU",
+        Backend::Gpu => "GPU",
     }
 }
 
@@ -62,23 +40,23 @@ pub trait FrameRenderer {
     ) -> voxcast::Result<(Image, RenderStats)>;
 }
 
-/// Makes the frame renderer of `backend` for `volume` over `window`, with
-/// the scene's opaque geometry.
+/// Makes the frame renderer of `device` (chosen by `voxcast_gpu::choose`)
+/// for `volume` over `window`, with the scene's opaque geometry.
 pub fn create<'v>(
-    backend: Backend,
+    device: Device,
     volume: &'v Volume,
     window: [f32; 2],
     geometry: Option<Arc<Geometry>>,
 ) -> voxcast::Result<Box<dyn FrameRenderer + 'v>> {
-    match backend {
-        Backend::Cpu => Ok(Box::new(CpuFrames {
+    match device {
+        Device::Cpu => Ok(Box::new(CpuFrames {
             renderer: Renderer::new(volume, window)?.with_geometry(geometry),
         })),
-        Backend::Gpu(ctx) => {
+        Device::Gpu(ctx) => {
             let gpu = GpuRenderer::new(ctx, volume, window)
                 .map_err(|e| voxcast::Error::invalid(e.to_string()))?;
             // Boxes and planes are drawn on the GPU; meshes only on the CPU.
-            let cpu_geometry = !GpuRenderer::supports_geometry(geometry.as_deref());
+            let cpu_geometry = !Backend::Gpu.renders_geometry(geometry.as_deref());
             let gpu = if cpu_geometry {
                 gpu
             } else {
@@ -117,7 +95,7 @@ impl FrameRenderer for GpuFrames<'_> {
         params: &RenderParams,
         cancel: &AtomicBool,
     ) -> voxcast::Result<(Image, RenderStats)> {
-        if voxcast_gpu::supports(params.method) && !self.cpu_geometry {
+        if Backend::Gpu.renders(params.method) && !self.cpu_geometry {
             return self
                 .gpu
                 .render(tf, camera, params)

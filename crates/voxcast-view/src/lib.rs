@@ -21,7 +21,7 @@ pub mod tf_model;
 mod tf_widget;
 pub mod worker;
 
-pub use backend::Backend;
+pub use voxcast_gpu::Device;
 
 use serde::Serialize;
 use std::path::PathBuf;
@@ -46,7 +46,8 @@ pub enum ViewError {
 /// How to run the viewer.
 #[derive(Clone, Debug, Default)]
 pub struct ViewOptions {
-    pub backend: Backend,
+    /// Where the frames are drawn (`voxcast_gpu::choose`).
+    pub device: Device,
     /// Scripted: write the view's pixels here, then exit.
     pub screenshot: Option<PathBuf>,
     /// Scripted: exit after at least this many UI frames, once the refined

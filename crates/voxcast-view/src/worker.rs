@@ -10,7 +10,7 @@
 //! after the full frame. Previews are never cancelled: each is short, and
 //! it is the newest image there is until the next one is done.
 
-use crate::backend::{self, Backend, FrameRenderer};
+use crate::backend::{self, FrameRenderer};
 use crate::progressive::Quality;
 use crate::tf_model::LogHistogram;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -24,6 +24,7 @@ use voxcast::render::RenderParams;
 use voxcast::transfer::TransferFunction;
 use voxcast::volume::Series;
 use voxcast::{Image, RenderStats, Volume};
+use voxcast_gpu::Device;
 
 /// Bins of the histogram sent with each volume.
 pub const HISTOGRAM_BINS: usize = 256;
@@ -170,7 +171,7 @@ impl Worker {
     /// Starts the thread with frame `frame` (`volume`) of `source` loaded.
     /// `notify` is called after every reply (to wake the UI).
     pub fn spawn(
-        backend: Backend,
+        device: Device,
         source: Source,
         frame: usize,
         volume: Arc<Volume>,
@@ -199,7 +200,7 @@ impl Worker {
                     .thread_name(|i| format!("voxcast-view render {i}"))
                     .build();
                 let mut t = Thread {
-                    backend,
+                    device,
                     source,
                     frame,
                     volume,
@@ -240,7 +241,7 @@ impl Drop for Worker {
 }
 
 struct Thread {
-    backend: Backend,
+    device: Device,
     source: Source,
     frame: usize,
     volume: Arc<Volume>,
@@ -271,19 +272,22 @@ impl Thread {
             }
             let volume = self.volume.clone();
             let window = req.window;
-            let mut renderer: Box<dyn FrameRenderer + '_> =
-                match backend::create(self.backend.clone(), &volume, window, self.geometry.clone())
-                {
-                    Ok(r) => r,
-                    Err(e) => {
-                        self.window = None;
-                        self.send(Reply::Error {
-                            generation: req.generation,
-                            message: e.to_string(),
-                        });
-                        continue;
-                    }
-                };
+            let mut renderer: Box<dyn FrameRenderer + '_> = match backend::create(
+                self.device.clone(),
+                &volume,
+                window,
+                self.geometry.clone(),
+            ) {
+                Ok(r) => r,
+                Err(e) => {
+                    self.window = None;
+                    self.send(Reply::Error {
+                        generation: req.generation,
+                        message: e.to_string(),
+                    });
+                    continue;
+                }
+            };
             let mut next = Some(req);
             loop {
                 let req = match next.take() {
@@ -407,7 +411,7 @@ mod tests {
     #[test]
     fn a_newer_request_cancels_the_full_frame_in_progress() {
         let v = voxcast::builtin::open("sphere").unwrap();
-        let w = Worker::spawn(Backend::Cpu, Source::Single, 0, Arc::new(v), None, || {});
+        let w = Worker::spawn(Device::Cpu, Source::Single, 0, Arc::new(v), None, || {});
         // Minutes of work uncancelled: 2000² pixels × 256 samples per pixel.
         let mut big = request(1);
         big.params.width = 2000;
@@ -444,7 +448,7 @@ mod tests {
     #[test]
     fn thread_renders_and_reports_the_histogram_first() {
         let v = voxcast::builtin::open("sphere").unwrap();
-        let w = Worker::spawn(Backend::Cpu, Source::Single, 0, Arc::new(v), None, || {});
+        let w = Worker::spawn(Device::Cpu, Source::Single, 0, Arc::new(v), None, || {});
         let mut req = request(7);
         req.window = [0.0, 1.0];
         w.submit(req);

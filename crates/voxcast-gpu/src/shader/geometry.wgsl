@@ -27,7 +27,7 @@ struct Hit {
 // shapes.rs Aabb::hit / Plane::hit for shape record `s`: (t, normal) in
 // x and yzw, t < 0 for a miss.
 fn shape_hit(s: u32, o: vec3<f32>, d: vec3<f32>, t_min: f32, t_max: f32) -> vec4<f32> {
-    let base = s * 6u;
+    let base = s * SHAPE_WORDS;
     let head = records[base];
     let miss = vec4<f32>(-1.0, 0.0, 0.0, 0.0);
     if head.x == 0.0 {
@@ -90,20 +90,20 @@ fn geometry_hit(o: vec3<f32>, d: vec3<f32>) -> Hit {
     var h: Hit;
     h.ok = false;
     h.t = BIG;
-    for (var s = 0u; s < P.geo.x; s += 1u) {
+    for (var s = 0u; s < P.shapes; s += 1u) {
         let r = shape_hit(s, o, d, 0.0, h.t);
         if r.x > 0.0 {
             h.ok = true;
             h.t = r.x;
             h.normal = r.yzw;
-            h.albedo = records[s * 6u + 5u].xyz;
+            h.albedo = records[s * SHAPE_WORDS + 5u].xyz;
         }
     }
     return h;
 }
 
 fn occluded(o: vec3<f32>, d: vec3<f32>) -> bool {
-    for (var s = 0u; s < P.geo.x; s += 1u) {
+    for (var s = 0u; s < P.shapes; s += 1u) {
         if shape_hit(s, o, d, 0.0, BIG).x >= 0.0 {
             return true;
         }
@@ -114,13 +114,13 @@ fn occluded(o: vec3<f32>, d: vec3<f32>) -> bool {
 // surface.rs transmittance: midpoint sums of the extinction at the base step
 // from world point p along unit l to the volume's edge.
 fn surface_transmittance(p: vec3<f32>, l: vec3<f32>) -> f32 {
-    let o = (p - P.origin_w.xyz) * P.inv_spacing.xyz;
-    let d = l * P.inv_spacing.xyz;
-    let te = box_intersect(o, inv3(d), P.box_lo.xyz, P.box_hi.xyz);
+    let o = (p - P.origin) * P.inv_spacing;
+    let d = l * P.inv_spacing;
+    let te = box_intersect(o, inv3(d), P.box_lo, P.box_hi);
     if !(te.y > te.x) {
         return 1.0;
     }
-    let step = P.inv_spacing.w * P.origin_w.w;
+    let step = P.step * P.unit;
     let n = max(ceil((te.y - te.x) / step), 1.0);
     let ds = (te.y - te.x) / n;
     var tau = 0.0;
@@ -132,7 +132,7 @@ fn surface_transmittance(p: vec3<f32>, l: vec3<f32>) -> f32 {
         }
     }
     n_interp += count;
-    return exp(-tau * ds / P.origin_w.w);
+    return exp(-tau * ds / P.unit);
 }
 
 fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
@@ -145,15 +145,15 @@ fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
 
 // surface.rs shade + SurfaceLight::shade: the lit linear colour of the hit.
 fn surface_colour(origin: vec3<f32>, dir: vec3<f32>, h: Hit) -> vec3<f32> {
-    let to_light = P.surf_dir.xyz;
+    let to_light = P.surf_dir;
     var light = 1.0;
-    if P.geo.y != 0u {
+    if P.shadows != 0u {
         var facing = h.normal;
         if dot(h.normal, dir) > 0.0 {
             facing = -h.normal;
         }
         if dot(facing, to_light) > 0.0 {
-            let p = origin + dir * h.t + facing * (1e-3 * P.origin_w.w);
+            let p = origin + dir * h.t + facing * (1e-3 * P.unit);
             if occluded(p, to_light) {
                 light = 0.0;
             } else {

@@ -6,8 +6,8 @@
 var<workgroup> wg_stats: array<atomic<u32>, 6>;
 
 fn intersect_box(o: vec3<f32>, inv_d: vec3<f32>) -> vec2<f32> {
-    let t0 = (P.box_lo.xyz - o) * inv_d;
-    let t1 = (P.box_hi.xyz - o) * inv_d;
+    let t0 = (P.box_lo - o) * inv_d;
+    let t1 = (P.box_hi - o) * inv_d;
     let tmin = min(t0, t1);
     let tmax = max(t0, t1);
     let enter = max(max(max(tmin.x, tmin.y), tmin.z), 0.0);
@@ -26,14 +26,14 @@ fn main(
         atomicStore(&wg_stats[lid], 0u);
     }
     workgroupBarrier();
-    let width = P.size.x;
-    let height = P.size.y;
-    // This dispatch renders passes first…end − 1 of P.size.z, adding to the
+    let width = P.width;
+    let height = P.height;
+    // This dispatch renders passes first…end − 1 of P.passes, adding to the
     // sums the dispatches before it left in out_px (the host divides).
-    let first = P.chunk.x;
-    let end = P.chunk.y;
+    let first = P.first_pass;
+    let end = P.end_pass;
     let passes = end - first;
-    let method = P.counts.w;
+    let method = P.method;
     let idx = gid.y * width + gid.x;
     var rays = 0u;
     var hits = 0u;
@@ -41,7 +41,7 @@ fn main(
     n_samples = 0u;
     n_interp = 0u;
     n_shaded = 0u;
-    if gid.x < width && gid.y < height && method == M_SINGLE {
+    if gid.x < width && gid.y < height && method == M_SINGLE_SCATTER {
         // path.rs render: spp camera rays with a random position in the pixel.
         var sum = vec3<f32>(0.0);
         if first > 0u {
@@ -65,15 +65,15 @@ fn main(
         let origin = r.o;
         let dir = r.d;
         view = -dir;
-        let o = (origin - P.origin_w.xyz) * P.inv_spacing.xyz;
-        let d = dir * P.inv_spacing.xyz;
+        let o = (origin - P.origin) * P.inv_spacing;
+        let d = dir * P.inv_spacing;
         let inv_d = inv3(d);
         var te = intersect_box(o, inv_d);
         // The first opaque surface ends the ray (surface.rs).
         var hit: Hit;
         hit.ok = false;
         var surf = vec3<f32>(0.0);
-        if P.geo.x > 0u {
+        if P.shapes > 0u {
             hit = geometry_hit(origin, dir);
             if hit.ok {
                 // The same every pass; the CPU shades (and counts) per pass.
@@ -92,12 +92,12 @@ fn main(
                 te.y = min(te.y, hit.t);
             }
             hits = passes;
-            let step = P.inv_spacing.w * P.origin_w.w;
+            let step = P.step * P.unit;
             for (var pass_i = first; pass_i < end; pass_i += 1u) {
                 acc_c = vec3<f32>(0.0);
                 acc_a = 0.0;
                 var t0 = te.x;
-                if (P.size.w & F_JITTER) != 0u {
+                if (P.flags & F_JITTER) != 0u {
                     t0 = te.x + pixel_sequence(gid.x, gid.y, pass_i) * step;
                 }
                 var stop = false;

@@ -14,12 +14,12 @@ struct Walker {
 
 fn walker_new(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32) -> Walker {
     var w: Walker;
-    let b = f32(P.dims.w);
+    let b = f32(P.block_size);
     let p = o + d * t_in;
     w.t = t_in;
     w.t_out = t_out;
     for (var a = 0; a < 3; a += 1) {
-        let n = i32(P.counts[a]);
+        let n = i32(P.block_counts[a]);
         let q = p[a] / b;
         var c: i32;
         if d[a] < 0.0 {
@@ -62,13 +62,13 @@ fn walker_next(w: ptr<function, Walker>) -> Stretch {
     let t_exit = max(min((*w).t_max[a], (*w).t_out), (*w).t);
     let bl = (*w).block;
     var s: Stretch;
-    s.index = u32(bl.x) + P.counts.x * (u32(bl.y) + P.counts.y * u32(bl.z));
+    s.index = u32(bl.x) + P.block_counts.x * (u32(bl.y) + P.block_counts.y * u32(bl.z));
     s.ta = (*w).t;
     s.tb = t_exit;
     (*w).t = t_exit;
     (*w).t_max[a] += (*w).t_delta[a];
     (*w).block[a] += (*w).step[a];
-    if (*w).block[a] < 0 || (*w).block[a] >= i32(P.counts[a]) {
+    if (*w).block[a] < 0 || (*w).block[a] >= i32(P.block_counts[a]) {
         (*w).t = (*w).t_out;
     }
     return s;
@@ -82,10 +82,10 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
     var pend_t = 0.0;
     var pend_entry = 0;
     var pend_rgb = vec3<f32>(0.0);
-    let method = P.counts.w;
-    let grouped = (P.size.w & F_GROUPED) != 0u;
-    let skip = (P.size.w & F_SKIP) != 0u;
-    let unit = P.origin_w.w;
+    let method = P.method;
+    let grouped = (P.flags & F_GROUPED) != 0u;
+    let skip = (P.flags & F_SKIP) != 0u;
+    let unit = P.unit;
     var w = walker_new(o, d, t_in, t_out);
     loop {
         if w.t >= w.t_out {
@@ -98,7 +98,7 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
         var j = 0;
         if method == M_ADAPTIVE || method == M_ADAPTIVE_MAX {
             if is_empty {
-                j = P.levels.y;
+                j = P.level_hi;
             } else if method == M_ADAPTIVE {
                 let tm = 0.5 * (ta + tb);
                 let g = gradient(o + d * tm);
@@ -109,7 +109,7 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
                 j = level(max_grad[st.index], t_out, 0.5 * (ta + tb));
             }
         }
-        let ratio = P.inv_spacing.w * exp2(f32(j));
+        let ratio = P.step * exp2(f32(j));
         let s = ratio * unit;
         let n0 = max(ceil((ta - t0) / s), 0.0);
         let n1 = max(ceil((tb - t0) / s), 0.0);
@@ -165,10 +165,10 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
 // follows the range its (head) value falls in; skipping an empty block
 // restarts the march on the base grid t0 + n·step.
 fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> bool {
-    let grouped = (P.size.w & F_GROUPED) != 0u;
-    let skip = (P.size.w & F_SKIP) != 0u;
-    let unit = P.origin_w.w;
-    let step = P.inv_spacing.w * unit;
+    let grouped = (P.flags & F_GROUPED) != 0u;
+    let skip = (P.flags & F_SKIP) != 0u;
+    let unit = P.unit;
+    let step = P.step * unit;
     var t = t0;
     var head_value = 0.0;
     var head = Eval(-1, vec3<f32>(0.0));
@@ -199,11 +199,11 @@ fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -
                 n_interp += 1u;
                 head = classify(p, head_value);
             }
-            var r_step = P.thresh2.x;
-            if head_value < P.thresh.x {
-                r_step = P.thresh.z;
-            } else if head_value < P.thresh.y {
-                r_step = P.thresh.w;
+            var r_step = P.thresh_step2;
+            if head_value < P.thresh_lo {
+                r_step = P.thresh_step0;
+            } else if head_value < P.thresh_hi {
+                r_step = P.thresh_step1;
             }
             let s = r_step * unit;
             if head.entry >= 0 {
@@ -224,8 +224,8 @@ fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -
 }
 
 fn in_empty_block(p: vec3<f32>) -> bool {
-    let b = f32(P.dims.w);
-    let c = P.counts.xyz;
+    let b = f32(P.block_size);
+    let c = P.block_counts;
     let q = max(p / b, vec3<f32>(0.0));
     let i = min(vec3<u32>(q), c - vec3<u32>(1u));
     return empty[i.x + c.x * (i.y + c.y * i.z)] != 0u;
@@ -245,11 +245,11 @@ fn mc_sample(p: vec3<f32>, len: f32) -> bool {
 // stochastic.rs uniform_mc: ⌈L/step⌉ sorted uniform positions (S1 eqs. 5–6).
 fn march_mc(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
     var rng = rng_for_pixel(px.x, px.y, pass_i);
-    let step = P.inv_spacing.w * P.origin_w.w;
+    let step = P.step * P.unit;
     let len = t_out - t_in;
     let count = u32(max(ceil(len / step), 1.0));
     let w = len / f32(count);
-    let skip = (P.size.w & F_SKIP) != 0u;
+    let skip = (P.flags & F_SKIP) != 0u;
     var cur = 1.0;
     for (var left = count; left > 0u; left -= 1u) {
         cur *= pow(1.0 - rng_uniform(&rng), 1.0 / f32(left));
@@ -274,13 +274,13 @@ fn interval_random(key: vec2<u32>, k: u32) -> f32 {
 // stochastic.rs stratified: one uniform position per step interval.
 fn march_stratified(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
     var rng = rng_for_pixel(px.x, px.y, pass_i);
-    let unit = P.origin_w.w;
-    let s = P.inv_spacing.w * unit;
+    let unit = P.unit;
+    let s = P.step * unit;
     let klo = rng_next(&rng);
     let khi = rng_next(&rng);
     let key = vec2<u32>(klo, khi);
     let last = u32(max(ceil((t_out - t_in) / s), 1.0)) - 1u;
-    let skip = (P.size.w & F_SKIP) != 0u;
+    let skip = (P.flags & F_SKIP) != 0u;
     var w = walker_new(o, d, t_in, t_out);
     loop {
         if w.t >= w.t_out {
@@ -311,7 +311,7 @@ fn march_stratified(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<
             if k == last {
                 alpha = alpha_for(e.entry, len);
             } else {
-                alpha = 1.0 - exp(-lut_entry(e.entry).w * P.inv_spacing.w);
+                alpha = 1.0 - exp(-lut_entry(e.entry).w * P.step);
             }
             if alpha > 0.0 && add(e.rgb, alpha) {
                 return true;

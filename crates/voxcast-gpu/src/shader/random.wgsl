@@ -64,7 +64,7 @@ fn splitmix(z: vec2<u32>) -> vec2<u32> {
 // march.rs pixel_random: uniform in [0, 1) per seed and pixel.
 fn pixel_random(x: u32, y: u32) -> f32 {
     let key = mul64(vec2<u32>(y, x), vec2<u32>(0x7F4A7C15u, 0x9E3779B9u));
-    let z = mix64(vec2<u32>(P.seed.x, P.seed.y) ^ key);
+    let z = mix64(P.seed ^ key);
     return f32(z.y >> 8u) / 16777216.0;
 }
 
@@ -100,7 +100,7 @@ fn rng_for_pixel(x: u32, y: u32, pass_i: u32) -> Rng {
     r.state = vec2<u32>(0u, 0u);
     r.inc = shl64(splitmix(stream), 1u) | vec2<u32>(1u, 0u);
     rng_next(&r);
-    r.state = add64(r.state, vec2<u32>(P.seed.z, P.seed.w));
+    r.state = add64(r.state, P.seed_mixed);
     rng_next(&r);
     return r;
 }

@@ -8,8 +8,8 @@ const PI: f32 = 3.14159265358979323846;
 const INV_4PI: f32 = 0.079577471545947667884;
 
 fn phase_eval(c: f32) -> f32 {
-    let kind = P.geo.w;
-    let g = P.med_scale.w;
+    let kind = P.phase;
+    let g = P.phase_g;
     if kind == 1u {
         let d = max(1.0 + g * g - 2.0 * g * c, 1e-12);
         return INV_4PI * (1.0 - g * g) / (d * sqrt(d));
@@ -42,8 +42,8 @@ fn cube_root(x: f32) -> f32 {
 }
 
 fn phase_sample_cos(rng: ptr<function, Rng>) -> f32 {
-    let kind = P.geo.w;
-    let g = P.med_scale.w;
+    let kind = P.phase;
+    let g = P.phase_g;
     if kind == 1u {
         return hg_sample_cos(g, rng);
     } else if kind == 2u {
@@ -85,9 +85,9 @@ fn from_frame(axis: vec3<f32>, c: f32, phi: f32) -> vec3<f32> {
 // light.rs environment: radiance of the infinite lights from direction d.
 fn environment(d: vec3<f32>) -> vec3<f32> {
     var l = vec3<f32>(0.0);
-    let base = P.geo.x * 6u;
-    for (var i = 0u; i < P.geo.z; i += 1u) {
-        let r = base + i * 4u;
+    let base = P.shapes * SHAPE_WORDS;
+    for (var i = 0u; i < P.lights; i += 1u) {
+        let r = base + i * LIGHT_WORDS;
         let kind = records[r].x;
         if kind == 2.0 {
             l += records[r + 1u].xyz;
@@ -114,9 +114,9 @@ struct Medium {
 // the medium's box.
 fn medium_enter(o: vec3<f32>, d: vec3<f32>, t_max: f32) -> Medium {
     var m: Medium;
-    m.o = (o - P.med_offset.xyz) * P.med_scale.xyz;
-    m.d = d * P.med_scale.xyz;
-    let te = box_intersect(m.o, inv3(m.d), vec3<f32>(0.0), P.med_hi.xyz);
+    m.o = (o - P.med_offset) * P.med_scale;
+    m.d = d * P.med_scale;
+    let te = box_intersect(m.o, inv3(m.d), vec3<f32>(0.0), P.med_hi);
     m.a = te.x;
     m.b = min(te.y, t_max);
     m.ok = te.y > te.x && m.b > m.a;
@@ -141,7 +141,7 @@ fn segment(m: Medium, ta: f32, tb: f32, s: f32, ratio: bool, rng: ptr<function, 
         }
         n_samples += 1u;
         n_interp += 1u;
-        let sigma = P.med_offset.w * clamp(sample(m.o + m.d * t), 0.0, 1.0);
+        let sigma = P.sigma_t * clamp(sample(m.o + m.d * t), 0.0, 1.0);
         if ratio {
             trk_tr *= 1.0 - sigma / s;
             if trk_tr < 0.1 {
@@ -167,8 +167,8 @@ fn track(o: vec3<f32>, d: vec3<f32>, t_max: f32, ratio: bool, rng: ptr<function,
     if !m.ok {
         return false;
     }
-    if P.med_albedo.w != 0.0 {
-        return segment(m, m.a, m.b, P.med_hi.w, ratio, rng);
+    if P.global_majorant != 0u {
+        return segment(m, m.a, m.b, P.majorant, ratio, rng);
     }
     var w = walker_new(m.o, m.d, m.a, m.b);
     loop {
@@ -191,11 +191,11 @@ fn li_single(o: vec3<f32>, d: vec3<f32>, rng: ptr<function, Rng>) -> vec3<f32> {
         return environment(d);
     }
     let p = o + d * trk_t;
-    let beta = P.med_albedo.xyz;
+    let beta = P.med_albedo;
     var l = vec3<f32>(0.0);
-    let base = P.geo.x * 6u;
-    for (var i = 0u; i < P.geo.z; i += 1u) {
-        let r = base + i * 4u;
+    let base = P.shapes * SHAPE_WORDS;
+    for (var i = 0u; i < P.lights; i += 1u) {
+        let r = base + i * LIGHT_WORDS;
         let kind = records[r].x;
         var dir: vec3<f32>;
         var dist: f32;
@@ -227,7 +227,7 @@ fn li_single(o: vec3<f32>, d: vec3<f32>, rng: ptr<function, Rng>) -> vec3<f32> {
     if pdf > 0.0 {
         weight = phase_eval(dot(d, nd)) / pdf;
     }
-    if P.med_flags.x != 0u {
+    if P.infinite_lights != 0u {
         track(p, nd, BIG, true, rng);
         l += beta * environment(nd) * (weight * trk_tr);
     }
@@ -241,17 +241,17 @@ struct CamRay {
 };
 
 fn camera_ray(px: f32, py: f32) -> CamRay {
-    let width = f32(P.size.x);
-    let height = f32(P.size.y);
-    let sx = (2.0 * px / width - 1.0) * P.forward.w;
-    let sy = (1.0 - 2.0 * py / height) * P.right.w;
+    let width = f32(P.width);
+    let height = f32(P.height);
+    let sx = (2.0 * px / width - 1.0) * P.half_width;
+    let sy = (1.0 - 2.0 * py / height) * P.half_height;
     var r: CamRay;
-    r.o = P.eye.xyz;
-    r.d = P.forward.xyz;
-    if P.eye.w == 0.0 {
-        r.d = normalize(P.forward.xyz + P.right.xyz * sx + P.up.xyz * sy);
+    r.o = P.eye;
+    r.d = P.forward;
+    if P.orthographic == 0u {
+        r.d = normalize(P.forward + P.right * sx + P.up * sy);
     } else {
-        r.o = P.eye.xyz + P.right.xyz * sx + P.up.xyz * sy;
+        r.o = P.eye + P.right * sx + P.up * sy;
     }
     return r;
 }

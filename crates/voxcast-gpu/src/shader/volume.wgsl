@@ -26,8 +26,8 @@ override BRICKED: bool = true;
 
 // Grid::sample: trilinear, coordinates clamped to the grid.
 fn sample(p0: vec3<f32>) -> f32 {
-    let p = min(max(p0, vec3<f32>(0.0)), P.grid_max.xyz);
-    let dims = vec3<i32>(P.dims.xyz);
+    let p = min(max(p0, vec3<f32>(0.0)), P.grid_max);
+    let dims = vec3<i32>(P.dims);
     let last = max(dims - vec3<i32>(2), vec3<i32>(0));
     let i = min(vec3<i32>(p), last);
     let f = p - vec3<f32>(i);
@@ -35,10 +35,10 @@ fn sample(p0: vec3<f32>) -> f32 {
     // The brick owning the cell holds all eight voxels (bricks share a plane).
     var slot = 0u;
     var org = vec3<i32>(0);
-    if BRICKED && P.bricks.w > 1u {
-        let b = min(vec3<u32>(i) / P.brick_cells.xyz, P.bricks.xyz - vec3<u32>(1u));
+    if BRICKED && P.brick_count > 1u {
+        let b = min(vec3<u32>(i) / P.brick_cells, P.bricks - vec3<u32>(1u));
         slot = b.x + P.bricks.x * (b.y + P.bricks.y * b.z);
-        org = vec3<i32>(b * P.brick_cells.xyz);
+        org = vec3<i32>(b * P.brick_cells);
     }
     let a = i - org;
     let j = j0 - org;
@@ -57,7 +57,7 @@ fn sample(p0: vec3<f32>) -> f32 {
         let e11 = d011 + (d111 - d011) * f.x;
         let e0 = e00 + (e10 - e00) * f.y;
         let e1 = e01 + (e11 - e01) * f.y;
-        return (e0 + (e1 - e0) * f.z) * P.grid_max.w + P.background.w;
+        return (e0 + (e1 - e0) * f.z) * P.value_scale + P.value_offset;
     }
     let c000 = texel(slot, vec3<i32>(a.x, a.y, a.z));
     let c100 = texel(slot, vec3<i32>(j.x, a.y, a.z));
@@ -73,7 +73,7 @@ fn sample(p0: vec3<f32>) -> f32 {
     let c11 = c011 + (c111 - c011) * f.x;
     let c0 = c00 + (c10 - c00) * f.y;
     let c1 = c01 + (c11 - c01) * f.y;
-    return (c0 + (c1 - c0) * f.z) * P.grid_max.w + P.background.w;
+    return (c0 + (c1 - c0) * f.z) * P.value_scale + P.value_offset;
 }
 
 fn gradient(p: vec3<f32>) -> vec3<f32> {
@@ -109,7 +109,7 @@ fn shade(rgb: vec3<f32>, g: vec3<f32>) -> vec3<f32> {
     if dot(g, g) < 1e-6 {
         return rgb;
     }
-    let n = normalize(g * P.inv_spacing.xyz);
+    let n = normalize(g * P.inv_spacing);
     let ndl = abs(dot(n, view));
     let spec = pow(ndl, 24.0);
     return min(rgb * (0.25 + 0.75 * ndl) + vec3<f32>(0.25 * spec), vec3<f32>(1.0));
@@ -140,7 +140,7 @@ fn classify(p: vec3<f32>, v: f32) -> Eval {
         return e;
     }
     var rgb = t.xyz;
-    if (P.size.w & F_SHADING) != 0u {
+    if (P.flags & F_SHADING) != 0u {
         rgb = shade(rgb, gradient(p));
         n_shaded += 1u;
     }
@@ -153,21 +153,21 @@ fn classify(p: vec3<f32>, v: f32) -> Eval {
 fn add(rgb: vec3<f32>, alpha: f32) -> bool {
     var em = rgb * alpha;
     var ab = alpha;
-    let model = P.levels.z;
-    if model == 0 {
+    let model = P.optical;
+    if model == OPTICAL_ABSORPTION_ONLY {
         em = vec3<f32>(0.0);
-    } else if model == 1 {
+    } else if model == OPTICAL_EMISSION_ONLY {
         ab = 0.0;
     }
     let t = 1.0 - acc_a;
     acc_c += em * t;
     acc_a += ab * t;
-    let ert = P.box_lo.w;
+    let ert = P.ert;
     return acc_a >= ert && ert < 1.0;
 }
 
 fn alpha_for(entry: i32, len_world: f32) -> f32 {
-    return 1.0 - exp(-lut_entry(entry).w * len_world / P.origin_w.w);
+    return 1.0 - exp(-lut_entry(entry).w * len_world / P.unit);
 }
 
 fn round_away(x: f32) -> f32 {
@@ -187,9 +187,9 @@ fn group_size(t: f32, t_exit: f32) -> u32 {
 fn level(k: f32, t_out: f32, tm: f32) -> i32 {
     let f = k * t_out / max(tm, 1e-6);
     if f > 0.0 {
-        return clamp(i32(round_away(log2(P.box_hi.w / f))), P.levels.x, P.levels.y);
+        return clamp(i32(round_away(log2(P.k_ref / f))), P.level_lo, P.level_hi);
     }
-    return P.levels.y;
+    return P.level_hi;
 }
 
 fn safe_inv(d: f32) -> f32 {

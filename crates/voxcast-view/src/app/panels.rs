@@ -106,7 +106,7 @@ impl ViewerApp {
                 .iter()
                 .filter(|t| now.duration_since(**t) < Duration::from_secs(1))
                 .count();
-            let mut text = format!("{} · ", self.backend.name());
+            let mut text = format!("{} · ", crate::backend::label(&self.device));
             if let Some((st, q)) = &self.last_stats {
                 let what = match q {
                     Quality::Full => "refined".to_string(),

@@ -78,7 +78,7 @@ impl ViewerApp {
             let mut st = s.stats.clone();
             st.ui_frames = self.ui_frame;
             st.view = [self.params.width, self.params.height];
-            st.backend = self.backend.name().to_string();
+            st.backend = crate::backend::label(&self.device).to_string();
             st
         });
         let mut o = self.outcome.lock().unwrap_or_else(|e| e.into_inner());

@@ -29,7 +29,7 @@ mod trace;
 pub use blocks::BlockGrid;
 pub use optics::OpticalModel;
 pub use packet::{level as simd_level, Level as SimdLevel};
-pub use params::{Method, MethodSpec, Order, RenderParams, Simd};
+pub use params::{Backend, Method, MethodSpec, Order, RenderParams, Simd};
 pub use stats::RenderStats;
 
 use crate::camera::{Camera, CameraParams};

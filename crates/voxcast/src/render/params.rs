@@ -107,6 +107,70 @@ impl Method {
     pub fn parse(s: &str) -> Option<Method> {
         Method::ALL.into_iter().find(|m| m.name() == s)
     }
+
+    /// The method's number, the same on every back end: its place in
+    /// [`Method::ALL`]. The GPU shader's `M_…` constants are generated from
+    /// it (`voxcast-gpu`'s `params.rs`), so no number is written twice.
+    pub fn code(self) -> u32 {
+        Method::ALL
+            .iter()
+            .position(|&m| m == self)
+            .expect("ALL lists every method") as u32
+    }
+}
+
+/// A renderer of voxcast: the multi-threaded CPU ray caster
+/// ([`Renderer`](super::Renderer)) or the wgpu compute-shader one (the
+/// `voxcast-gpu` crate). [`Backend::renders`] is the one table of what each
+/// draws: the GPU crate refuses by it, and the command line, the viewer and
+/// their help texts read it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    Cpu,
+    Gpu,
+}
+
+impl Backend {
+    /// `cpu` or `gpu`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Cpu => "cpu",
+            Backend::Gpu => "gpu",
+        }
+    }
+
+    /// Whether this back end renders `method`. The CPU renders every method;
+    /// the GPU lacks `importance`, `lod` and `path`.
+    pub fn renders(self, method: Method) -> bool {
+        match self {
+            Backend::Cpu => true,
+            Backend::Gpu => !matches!(method, Method::Importance | Method::Lod | Method::Path),
+        }
+    }
+
+    /// Whether this back end draws the scene's opaque geometry: the CPU all
+    /// of it; the GPU boxes and planes but not triangle meshes.
+    pub fn renders_geometry(self, geometry: Option<&crate::geometry::Geometry>) -> bool {
+        match self {
+            Backend::Cpu => true,
+            Backend::Gpu => geometry.is_none_or(|g| g.counts()[2] == 0),
+        }
+    }
+
+    /// The methods this back end renders, in [`Method::ALL`]'s order.
+    pub fn methods(self) -> impl Iterator<Item = Method> {
+        Method::ALL.into_iter().filter(move |&m| self.renders(m))
+    }
+
+    /// The methods this back end renders, as a sentence's list
+    /// (`uniform, adaptive, … and single-scatter`), for messages and help.
+    pub fn method_list(self) -> String {
+        let names: Vec<&str> = self.methods().map(Method::name).collect();
+        match names.split_last() {
+            Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+            _ => names.join(""),
+        }
+    }
 }
 
 /// A method as written on the command line: a marcher name optionally
@@ -383,5 +447,35 @@ impl RenderParams {
             return Err(Error::invalid("background: each component must be in 0…1"));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_codes_are_places_in_all() {
+        for (i, m) in Method::ALL.into_iter().enumerate() {
+            assert_eq!(m.code(), i as u32, "{}", m.name());
+        }
+    }
+
+    /// The one table: the CPU renders everything, the GPU all but three, and
+    /// the list for messages reads as a sentence.
+    #[test]
+    fn backend_table() {
+        assert_eq!(Backend::Cpu.methods().count(), Method::ALL.len());
+        let gpu: Vec<&str> = Backend::Gpu.methods().map(Method::name).collect();
+        assert_eq!(gpu.len(), Method::ALL.len() - 3);
+        for m in [Method::Importance, Method::Lod, Method::Path] {
+            assert!(!Backend::Gpu.renders(m) && Backend::Cpu.renders(m));
+        }
+        assert!(Backend::Gpu.renders(Method::SingleScatter));
+        assert_eq!(
+            Backend::Gpu.method_list(),
+            "uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter"
+        );
+        assert!(Backend::Gpu.renders_geometry(None));
     }
 }
