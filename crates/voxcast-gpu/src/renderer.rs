@@ -16,7 +16,7 @@ use wgpu::util::DeviceExt;
 
 use crate::context::{scoped, GpuContext, GpuError};
 use crate::params::Params;
-use crate::upload::{env_texture_limit, texels, Bricking};
+use crate::upload::{env_texture_limit, texels, Bricking, MAX_BRICKS};
 
 /// The shader files of `shader/`, concatenated in this order (WGSL has no
 /// imports; each file names the Rust it mirrors).
@@ -41,9 +41,6 @@ pub(crate) fn shader_source() -> String {
 /// the one before left, so no single dispatch runs long enough to trip a
 /// GPU watchdog (about 2 s on desktop drivers).
 pub(crate) const PASSES_PER_DISPATCH: u32 = 8;
-
-/// Texture slots for bricks (bindings 1 and 9…15).
-pub(crate) const MAX_BRICKS: usize = 8;
 
 /// The method's code for the shader, or the refusal of a method the GPU
 /// lacks (the table is [`Backend::renders`]).

@@ -4,8 +4,10 @@
 
 use voxcast::volume::{Volume, VoxelData};
 
-use crate::renderer::MAX_BRICKS;
 use crate::GpuError;
+
+/// Texture slots for bricks (bindings 1 and 9…15 of the shader).
+pub(crate) const MAX_BRICKS: usize = 8;
 
 /// The texels to upload for `volume`, their format, and the map from texel
 /// to normalised value.

@@ -6,6 +6,9 @@ use crate::error::{Error, Result};
 use crate::volume::{Volume, VoxelData};
 use glam::Vec3;
 
+/// Prefix of built-in volume names: `builtin:demo`.
+pub const PREFIX: &str = "builtin:";
+
 /// The built-in volumes: name and description.
 pub const BUILTINS: &[(&str, &str)] = &[
     (
@@ -33,12 +36,12 @@ pub fn open(name: &str) -> Result<Volume> {
         _ => {
             let names: Vec<&str> = BUILTINS.iter().map(|b| b.0).collect();
             return Err(Error::invalid(format!(
-                "builtin:{name}: no such built-in volume (known: {})",
+                "{PREFIX}{name}: no such built-in volume (known: {})",
                 names.join(", ")
             )));
         }
     };
-    v.name = Some(format!("builtin:{name}"));
+    v.name = Some(format!("{PREFIX}{name}"));
     Ok(v)
 }
 

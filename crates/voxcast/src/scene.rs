@@ -47,8 +47,8 @@ use crate::volume::Volume;
 use serde::{Deserialize, Serialize};
 use std::path::{Component, Path, PathBuf};
 
-/// Prefix of built-in volume names.
-pub const BUILTIN_PREFIX: &str = "builtin:";
+/// Prefix of built-in volume names (defined with them, in [`crate::builtin`]).
+pub use crate::builtin::PREFIX as BUILTIN_PREFIX;
 
 /// What to load.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

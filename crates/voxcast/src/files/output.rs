@@ -36,7 +36,7 @@ impl Outputs {
             inputs: inputs
                 .into_iter()
                 .map(|s| s.as_ref().to_string())
-                .filter(|s| !s.starts_with(crate::scene::BUILTIN_PREFIX) && !s.is_empty())
+                .filter(|s| !s.starts_with(crate::builtin::PREFIX) && !s.is_empty())
                 .collect(),
             planned: Vec::new(),
             staged: Vec::new(),
@@ -190,7 +190,7 @@ pub fn check_folder(what: &str, dir: &Path, inputs: &[&str]) -> Result<()> {
     }
     for input in inputs
         .iter()
-        .filter(|s| !s.starts_with(crate::scene::BUILTIN_PREFIX) && !s.is_empty())
+        .filter(|s| !s.starts_with(crate::builtin::PREFIX) && !s.is_empty())
     {
         if writes_into_input(dir, Path::new(input)) || Path::new(input) == dir {
             return Err(Error::invalid(format!(

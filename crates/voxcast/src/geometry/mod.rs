@@ -287,7 +287,7 @@ impl Geometry {
         let mut parts = Parts::default();
         if let Some(f) = &spec.file {
             parts.add_file(Path::new(f))?;
-        } else if spec.auto && !input.starts_with(crate::scene::BUILTIN_PREFIX) {
+        } else if spec.auto && !input.starts_with(crate::builtin::PREFIX) {
             let p = Path::new(input);
             let is_smv = p.extension().is_some_and(|e| e.eq_ignore_ascii_case("smv"));
             if is_smv && p.is_file() {

@@ -406,7 +406,7 @@ pub(crate) fn read_header(path: &Path) -> Result<std::result::Result<Option<File
         if let (Some(off), Some(p), Some(n)) = (
             offsets.as_ref(),
             position,
-            orientation.and_then(super::series::slice_normal),
+            orientation.and_then(slice_normal),
         ) {
             let d = off[k as usize] - off[0];
             position = Some([p[0] + d * n[0], p[1] + d * n[1], p[2] + d * n[2]]);
@@ -482,4 +482,21 @@ pub(crate) fn read_header(path: &Path) -> Result<std::result::Result<Option<File
         frames,
         pixel,
     })))
+}
+
+pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The slice normal (row cosine × column cosine), normalised, or None for a
+/// degenerate orientation.
+pub(crate) fn slice_normal(o: [f64; 6]) -> Option<[f64; 3]> {
+    let (r, c) = ([o[0], o[1], o[2]], [o[3], o[4], o[5]]);
+    let n = [
+        r[1] * c[2] - r[2] * c[1],
+        r[2] * c[0] - r[0] * c[2],
+        r[0] * c[1] - r[1] * c[0],
+    ];
+    let len = dot(n, n).sqrt();
+    (len > 1e-6 && len.is_finite()).then(|| n.map(|v| v / len))
 }

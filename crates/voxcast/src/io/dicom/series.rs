@@ -1,7 +1,7 @@
 //! Grouping the image files of a folder into series, checking that a series
 //! can be decoded, and ordering its slices.
 
-use super::header::{FileHeader, Frame};
+use super::header::{dot, slice_normal, FileHeader, Frame};
 use super::lengths::PixelExtent;
 use super::{transfer_syntax_name, DEFLATED, EXPLICIT_BE, EXPLICIT_LE, IMPLICIT_LE};
 use crate::error::{Error, Result};
@@ -221,23 +221,6 @@ pub(crate) fn check_file(s: &FileHeader) -> Result<()> {
         )),
         _ => Ok(()),
     }
-}
-
-pub(crate) fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-/// The slice normal (row cosine × column cosine), normalised, or None for a
-/// degenerate orientation.
-pub(crate) fn slice_normal(o: [f64; 6]) -> Option<[f64; 3]> {
-    let (r, c) = ([o[0], o[1], o[2]], [o[3], o[4], o[5]]);
-    let n = [
-        r[1] * c[2] - r[2] * c[1],
-        r[2] * c[0] - r[0] * c[2],
-        r[0] * c[1] - r[1] * c[0],
-    ];
-    let len = dot(n, n).sqrt();
-    (len > 1e-6 && len.is_finite()).then(|| n.map(|v| v / len))
 }
 
 fn median(v: &[f64]) -> f64 {

@@ -38,6 +38,7 @@ mod read;
 mod s3d;
 mod slice;
 mod smv;
+mod summary;
 
 pub use model::{Mesh, Obstruction, Plot3d, Quantity, Slice, Smoke3d, Smv};
 pub use plot3d::{read_q_variable, read_xyz_iblank};
