@@ -750,13 +750,12 @@ impl SceneArgs {
                 .push(voxcast::render::light::Light::Environment { radiance });
         }
         self.apply_geometry(scene)?;
-        // One set of rules for flags and scene files: the library's.
-        if let Some((field, message)) = scene.problem() {
-            match self.flag_for(&field) {
-                Some(flag) => bail!("{flag} {message}"),
-                // The render's own messages name their setting.
-                None if field == "render" => bail!("{message}"),
-                None => bail!("{field}: {message}"),
+        // One set of rules for flags and scene files: the library's. The
+        // error names the flag that set the field, else the field.
+        if let Some(e) = scene.problem() {
+            match self.flag_for(&e.field) {
+                Some(flag) => bail!("{flag} {}", e.message),
+                None => bail!("{e}"),
             }
         }
         Ok(())
@@ -772,6 +771,17 @@ impl SceneArgs {
             "transfer.window" => ("--window", self.window.is_some()),
             "input.spacing" => ("--spacing", self.open.spacing.is_some()),
             "geometry.light" => ("--light", self.light.is_some()),
+            "render.size" => ("--size", self.size.is_some()),
+            "render.step" => ("--step", self.step.is_some()),
+            "render.ert" => ("--ert", self.ert.is_some()),
+            "render.block_size" => ("--block-size", self.block_size.is_some()),
+            "render.spp" => ("--spp", self.spp.is_some()),
+            "render.background" => ("--background", self.background.is_some()),
+            "render.medium.scale" => ("--extinction", self.extinction.is_some()),
+            "render.medium.albedo" => ("--albedo", self.albedo.is_some()),
+            "render.medium.max_depth" => ("--max-depth", self.max_depth.is_some()),
+            "render.medium.phase" => ("--phase", self.phase.is_some()),
+            "render.lights" => ("--env", self.env.is_some()),
             _ => return None,
         };
         given.1.then_some(given.0)

@@ -22,9 +22,7 @@ impl GpuRenderer {
         params: &RenderParams,
     ) -> Result<(Image, RenderStats), GpuError> {
         params.validate_for(&self.volume)?;
-        if let Some(l) = &camera.look_at {
-            l.validate().map_err(voxcast::Error::invalid)?;
-        }
+        camera.validate().map_err(voxcast::Error::from)?;
         let method = method_code(params.method)?;
         let physical = params.method.is_physical();
         let geometry = self.geometry.as_ref().filter(|g| !g.is_empty());

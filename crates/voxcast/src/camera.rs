@@ -57,18 +57,53 @@ impl LookAt {
     }
 
     /// Checks that the eye is not the target and `up` is not along the view.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
         let f = Vec3::from(self.target) - Vec3::from(self.origin);
         let up = Vec3::from(self.up);
         if !(f.is_finite() && up.is_finite())
             || f.length() < 1e-9
             || f.cross(up).length() < 1e-9 * f.length() * up.length().max(1e-30)
         {
-            return Err(format!(
-                "camera.look_at {self:?}: origin and target must differ and up must not be parallel to the view"
+            return Err(crate::FieldError::new(
+                "camera.look_at",
+                format!("{self:?}: origin and target must differ and up must not be parallel to the view"),
             ));
         }
         Ok(())
+    }
+}
+
+impl CameraParams {
+    /// Checks every camera value a user may set (flags, a scene file or the
+    /// API alike): finite angles, a positive zoom, a field of view of 1…170
+    /// degrees, a proper `look_at`. Both renderers refuse what fails it, so
+    /// nothing is clamped or reset quietly.
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
+        let bad = |field: &str, m: String| Err(crate::FieldError::new(field, m));
+        for (field, v) in [
+            ("camera.azimuth", self.azimuth),
+            ("camera.elevation", self.elevation),
+        ] {
+            if !v.is_finite() {
+                return bad(field, format!("{v}: expected a finite angle in degrees"));
+            }
+        }
+        if !(self.zoom.is_finite() && self.zoom > 0.0) {
+            return bad(
+                "camera.zoom",
+                format!("{}: must be a positive number", self.zoom),
+            );
+        }
+        if !(1.0..=170.0).contains(&self.fov) {
+            return bad(
+                "camera.fov",
+                format!("{}: must be between 1 and 170 degrees", self.fov),
+            );
+        }
+        match &self.look_at {
+            Some(l) => l.validate(),
+            None => Ok(()),
+        }
     }
 }
 

@@ -25,6 +25,9 @@ pub enum Error {
     Unsupported { path: PathBuf, message: String },
     /// Invalid parameters that did not come from a file (command line, scene).
     Invalid(String),
+    /// A setting with a value out of its range, named by its scene field
+    /// (`camera.fov`, `render.step`, …), from flags or a scene alike.
+    Field(FieldError),
     /// A render stopped early because its cancel flag was raised
     /// ([`crate::render::Renderer::render_cancellable`]).
     Cancelled,
@@ -49,6 +52,7 @@ impl std::fmt::Display for Error {
                 write!(f, "{}: unsupported: {}", quote_path(path), quote(message))
             }
             Error::Invalid(m) => f.write_str(&quote(m)),
+            Error::Field(e) => f.write_str(&quote(&e.to_string())),
             Error::Cancelled => f.write_str("the render was cancelled"),
         }
     }
@@ -148,6 +152,48 @@ impl Error {
     /// Invalid parameters (not from a file).
     pub fn invalid(message: impl Into<String>) -> Self {
         Error::Invalid(message.into())
+    }
+}
+
+/// A setting a user may get wrong, named by its field in a scene file
+/// (`camera.fov`, `render.medium.albedo`, `transfer.window`, …) with what
+/// is wrong, starting with the value: `0: must be between 1 and 170
+/// degrees`. Every check of the scene's values returns one, so the command
+/// line can name the flag that set the field, a scene file the file and the
+/// field, and the library the field.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FieldError {
+    pub field: String,
+    pub message: String,
+}
+
+impl FieldError {
+    pub fn new(field: impl Into<String>, message: impl Into<String>) -> Self {
+        FieldError {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The same error under an enclosing field: `medium.scale` in `render`
+    /// is `render.medium.scale`.
+    pub fn within(mut self, outer: &str) -> Self {
+        self.field = format!("{outer}.{}", self.field);
+        self
+    }
+}
+
+impl std::fmt::Display for FieldError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}: {}", self.field, self.message)
+    }
+}
+
+impl std::error::Error for FieldError {}
+
+impl From<FieldError> for Error {
+    fn from(e: FieldError) -> Self {
+        Error::Field(e)
     }
 }
 

@@ -28,7 +28,7 @@ pub mod volume;
 #[doc(hidden)]
 pub mod testdata;
 
-pub use error::{Error, Result};
+pub use error::{Error, FieldError, Result};
 pub use image::Image;
 pub use render::RenderStats;
 pub use scene::Scene;

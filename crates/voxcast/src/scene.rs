@@ -36,7 +36,7 @@
 //! ```
 
 use crate::camera::CameraParams;
-use crate::error::{Error, Result};
+use crate::error::{Error, FieldError, Result};
 use crate::files::write_file;
 use crate::geometry::{Geometry, GeometrySpec};
 use crate::image::Image;
@@ -168,8 +168,8 @@ impl Scene {
         for m in &mut scene.geometry.meshes {
             m.path = join(base, &m.path);
         }
-        if let Some((field, message)) = scene.problem() {
-            return Err(Error::format(path, field, message));
+        if let Some(e) = scene.problem() {
+            return Err(Error::format(path, e.field, e.message));
         }
         Ok(scene)
     }
@@ -178,40 +178,20 @@ impl Scene {
     /// error names the field (`camera.fov`, `transfer.window`, …).
     pub fn validate(&self) -> Result<()> {
         match self.problem() {
-            Some((field, message)) => Err(Error::invalid(format!("{field}: {message}"))),
+            Some(e) => Err(e.into()),
             None => Ok(()),
         }
     }
 
-    /// The first invalid value, as (field, what is wrong); `None` when the
-    /// scene is valid. See [`Scene::validate`].
-    pub fn problem(&self) -> Option<(String, String)> {
-        let bad = |field: &str, message: String| Some((field.to_string(), message));
-        let c = &self.camera;
-        for (field, v) in [
-            ("camera.azimuth", c.azimuth),
-            ("camera.elevation", c.elevation),
-        ] {
-            if !v.is_finite() {
-                return bad(field, format!("{v}: expected a finite angle in degrees"));
-            }
-        }
-        if !(c.zoom.is_finite() && c.zoom > 0.0) {
-            return bad(
-                "camera.zoom",
-                format!("{}: must be a positive number", c.zoom),
-            );
-        }
-        if !(1.0..=170.0).contains(&c.fov) {
-            return bad(
-                "camera.fov",
-                format!("{}: must be between 1 and 170 degrees", c.fov),
-            );
-        }
-        if let Some(l) = &c.look_at {
-            if let Err(e) = l.validate() {
-                return bad("camera.look_at", e);
-            }
+    /// The first invalid value, naming its field; `None` when the scene is
+    /// valid. The one set of rules for scene files, the command line (which
+    /// names the flag that set the field) and the API: each part checks its
+    /// own values ([`CameraParams::validate`](crate::camera::CameraParams::validate),
+    /// [`RenderParams::validate`](crate::render::RenderParams::validate), …).
+    pub fn problem(&self) -> Option<FieldError> {
+        let bad = |field: &str, message: String| Some(FieldError::new(field, message));
+        if let Err(e) = self.camera.validate() {
+            return Some(e);
         }
         if let Some([lo, hi]) = self.transfer.window {
             if !(lo.is_finite() && hi.is_finite() && lo < hi) {
@@ -223,7 +203,7 @@ impl Scene {
         }
         if let Some(m) = &self.transfer.map {
             if let Err(e) = m.validate() {
-                return bad("transfer.map", e);
+                return Some(e.within("transfer.map"));
             }
         }
         if let Some(s) = self.input.options.spacing {
@@ -242,10 +222,7 @@ impl Scene {
                 );
             }
         }
-        if let Err(e) = self.render.validate() {
-            return bad("render", e.to_string());
-        }
-        None
+        self.render.validate().err()
     }
 
     /// Writes the scene to `path` (atomically), with file paths relative to

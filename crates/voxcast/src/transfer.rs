@@ -193,22 +193,33 @@ impl TransferFunction {
     pub fn from_toml_file(path: &Path) -> Result<TransferFunction> {
         let tf: TransferFunction = crate::files::read_toml(path)?;
         tf.validate()
-            .map_err(|m| Error::format(path, "transfer function", m))?;
+            .map_err(|e| Error::format(path, e.field, e.message))?;
         Ok(tf)
     }
 
     /// Checks the control points: at least one of each and at most
     /// [`MAX_POINTS`], values finite and non-decreasing, colours and
     /// opacities in 0…1, window lo < hi.
-    pub fn validate(&self) -> std::result::Result<(), String> {
+    /// The error names the field: `color`, `opacity` or `window`.
+    pub fn validate(&self) -> std::result::Result<(), crate::FieldError> {
+        let bad = |field: &str, m: String| Err(crate::FieldError::new(field, m));
         if self.color.is_empty() || self.opacity.is_empty() {
-            return Err("needs at least one `color` and one `opacity` point".into());
+            let field = if self.color.is_empty() {
+                "color"
+            } else {
+                "opacity"
+            };
+            return bad(
+                field,
+                "needs at least one `color` and one `opacity` point".into(),
+            );
         }
         for (name, n) in [("color", self.color.len()), ("opacity", self.opacity.len())] {
             if n > MAX_POINTS {
-                return Err(format!(
-                    "{n} `{name}` points: at most {MAX_POINTS} (the lookup table's resolution)"
-                ));
+                return bad(
+                    name,
+                    format!("{n} points: at most {MAX_POINTS} (the lookup table's resolution)"),
+                );
             }
         }
         for (name, vals) in [
@@ -221,25 +232,23 @@ impl TransferFunction {
             let mut last = f32::NEG_INFINITY;
             for p in &vals {
                 if p.iter().any(|x| !x.is_finite()) {
-                    return Err(format!("`{name}` point {p:?} is not finite"));
+                    return bad(name, format!("point {p:?} is not finite"));
                 }
                 if p[0] < last {
-                    return Err(format!(
-                        "`{name}` points must be sorted by value ({} after {last})",
-                        p[0]
-                    ));
+                    return bad(
+                        name,
+                        format!("points must be sorted by value ({} after {last})", p[0]),
+                    );
                 }
                 last = p[0];
                 if p[1..].iter().any(|&x| !(0.0..=1.0).contains(&x)) {
-                    return Err(format!(
-                        "`{name}` point {p:?}: colour/opacity must be in 0…1"
-                    ));
+                    return bad(name, format!("point {p:?}: colour/opacity must be in 0…1"));
                 }
             }
         }
         if let Some([lo, hi]) = self.window {
             if !(lo.is_finite() && hi.is_finite() && lo < hi) {
-                return Err(format!("window [{lo}, {hi}] must have lo < hi"));
+                return bad("window", format!("[{lo}, {hi}] must have lo < hi"));
             }
         }
         Ok(())
@@ -505,7 +514,7 @@ mod tests {
         let mut tf = TransferFunction::preset("grayscale").unwrap();
         let n = MAX_POINTS + 1;
         tf.opacity = (0..n).map(|i| [i as f32 / n as f32, 0.5]).collect();
-        let e = tf.validate().unwrap_err();
+        let e = tf.validate().unwrap_err().to_string();
         assert!(e.contains("at most 4096"), "{e}");
         tf.opacity.truncate(MAX_POINTS);
         tf.validate().unwrap();

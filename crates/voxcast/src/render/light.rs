@@ -142,7 +142,7 @@ impl Light {
     }
 
     /// Checks the numbers (finite, non-negative; a direction not zero).
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
         let ok = |v: &[f32; 3]| v.iter().all(|x| x.is_finite() && *x >= 0.0);
         let bad = match self {
             Light::Directional {
@@ -165,8 +165,9 @@ impl Light {
             } => !ok(zenith) || !ok(horizon) || !ok(ground),
         };
         if bad {
-            Err(format!(
-                "light {self:?}: colours must be finite and ≥ 0, a direction non-zero"
+            Err(crate::FieldError::new(
+                "lights",
+                format!("{self:?}: colours must be finite and ≥ 0, a direction non-zero"),
             ))
         } else {
             Ok(())

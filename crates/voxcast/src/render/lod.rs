@@ -28,7 +28,7 @@
 use super::march::{intersect_box, BlockWalker};
 use super::octree::Octree;
 use super::ray::{flush, Composite, Counters, Frame, Marcher, Pending, Sampler, Segment};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::transfer::{Lut, LUT_SIZE};
 use crate::volume::Voxel;
 use glam::Vec3;
@@ -64,23 +64,24 @@ impl Default for LodParams {
 
 impl LodParams {
     /// Checks the numbers a user may get wrong.
-    pub fn validate(&self) -> Result<()> {
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
         for (name, k) in [
             ("high", self.high),
             ("low", self.low),
             ("sparse", self.sparse),
         ] {
             if !(1..=16).contains(&k) {
-                return Err(Error::invalid(format!(
-                    "lod.{name} = {k}: a spacing must be 1…16 base steps"
-                )));
+                return Err(crate::FieldError::new(
+                    format!("lod.{name}"),
+                    format!("{k}: a spacing must be 1…16 base steps"),
+                ));
             }
         }
         if !(self.threshold.is_finite() && self.threshold > 0.0 && self.threshold <= 1.0) {
-            return Err(Error::invalid(format!(
-                "lod.threshold = {}: must be in (0, 1]",
-                self.threshold
-            )));
+            return Err(crate::FieldError::new(
+                "lod.threshold",
+                format!("{}: must be in (0, 1]", self.threshold),
+            ));
         }
         Ok(())
     }

@@ -77,45 +77,53 @@ impl MediumParams {
 
     /// Refuses an extinction whose optical depth across the medium's box
     /// exceeds [`MAX_OPTICAL_DEPTH`], naming the largest scale that fits.
-    pub fn check_optical_depth(&self, volume: &crate::volume::Volume) -> Result<(), String> {
+    pub fn check_optical_depth(
+        &self,
+        volume: &crate::volume::Volume,
+    ) -> Result<(), crate::FieldError> {
         let (lo, hi) = self.world_box(volume);
         let diagonal = (hi - lo).length().max(f32::MIN_POSITIVE);
         let depth = self.scale as f64 * diagonal as f64;
         if depth > MAX_OPTICAL_DEPTH as f64 {
-            return Err(format!(
-                "medium.scale {:e}: the optical depth across the volume (scale × its diagonal {diagonal:.4}) is {depth:.3e}, above {MAX_OPTICAL_DEPTH:.0e}: no light would get through and each path would take millions of steps; use a scale below {:.4e}",
+            return Err(crate::FieldError::new("medium.scale", format!(
+                "{:e}: the optical depth across the volume (scale × its diagonal {diagonal:.4}) is {depth:.3e}, above {MAX_OPTICAL_DEPTH:.0e}: no light would get through and each path would take millions of steps; use a scale below {:.4e}",
                 self.scale,
                 MAX_OPTICAL_DEPTH as f64 / diagonal as f64
-            ));
+            )));
         }
         Ok(())
     }
 
-    /// Checks the numbers a user may get wrong.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks the numbers a user may get wrong; the error's field is
+    /// `medium.…`.
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
+        let bad = |field: &str, m: String| Err(crate::FieldError::new(field, m));
         if !(self.scale.is_finite() && self.scale >= 0.0) {
-            return Err(format!("medium.scale {}: must be ≥ 0", self.scale));
+            return bad("medium.scale", format!("{}: must be ≥ 0", self.scale));
         }
         if self.albedo.iter().any(|a| !(0.0..=1.0).contains(a)) {
-            return Err(format!(
-                "medium.albedo {:?}: each channel must be in 0…1",
-                self.albedo
-            ));
+            return bad(
+                "medium.albedo",
+                format!("{:?}: each channel must be in 0…1", self.albedo),
+            );
         }
         if !(1..=100_000).contains(&self.max_depth) {
-            return Err(format!(
-                "medium.max_depth {}: must be 1…100000",
-                self.max_depth
-            ));
+            return bad(
+                "medium.max_depth",
+                format!("{}: must be 1…100000", self.max_depth),
+            );
         }
         if let Some([lo, hi]) = self.r#box {
             if (0..3).any(|a| !(lo[a].is_finite() && hi[a].is_finite() && lo[a] < hi[a])) {
-                return Err(format!(
-                    "medium.box {:?}: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]] with min < max",
-                    [lo, hi]
-                ));
+                return bad(
+                    "medium.box",
+                    format!(
+                        "{:?}: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]] with min < max",
+                        [lo, hi]
+                    ),
+                );
             }
         }
-        self.phase.validate().map_err(|e| format!("medium.{e}"))
+        self.phase.validate().map_err(|e| e.within("medium"))
     }
 }

@@ -215,9 +215,7 @@ impl<'v> Renderer<'v> {
         cancel: &AtomicBool,
     ) -> Result<(Image, RenderStats)> {
         params.validate_for(self.volume)?;
-        if let Some(l) = &camera.look_at {
-            l.validate().map_err(Error::invalid)?;
-        }
+        camera.validate()?;
         let start = Instant::now();
         let volume = self.volume;
         let (mut lo, mut hi) = volume.world_bounds();

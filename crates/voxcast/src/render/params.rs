@@ -382,45 +382,55 @@ impl RenderParams {
         if self.method.is_physical() {
             self.medium
                 .check_optical_depth(volume)
-                .map_err(Error::invalid)?;
+                .map_err(|e| e.within("render"))?;
         }
         Ok(())
     }
 
-    pub fn validate(&self) -> Result<()> {
+    /// Checks every value a user may get wrong; the error names the field
+    /// (`render.step`, `render.medium.albedo`, …).
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
+        let bad =
+            |field: &str, m: String| Err(crate::FieldError::new(format!("render.{field}"), m));
         if self.width == 0 || self.height == 0 || self.width > 16384 || self.height > 16384 {
-            return Err(Error::invalid(format!(
-                "image size {}×{}: each side must be 1…16384 pixels",
-                self.width, self.height
-            )));
+            return bad(
+                "size",
+                format!(
+                    "{}×{}: each side must be 1…16384 pixels",
+                    self.width, self.height
+                ),
+            );
         }
         if !(self.step.is_finite() && self.step >= 1e-3 && self.step <= 64.0) {
-            return Err(Error::invalid(format!(
-                "step {}: must be between 0.001 and 64 voxels",
-                self.step
-            )));
+            return bad(
+                "step",
+                format!("{}: must be between 0.001 and 64 voxels", self.step),
+            );
         }
         if !(self.ert > 0.0 && self.ert <= 1.0) {
-            return Err(Error::invalid(format!(
-                "ert {}: the termination threshold must be in (0, 1] (1 disables it)",
-                self.ert
-            )));
+            return bad(
+                "ert",
+                format!(
+                    "{}: the termination threshold must be in (0, 1] (1 disables it)",
+                    self.ert
+                ),
+            );
         }
         if !(2..=64).contains(&self.block_size) {
-            return Err(Error::invalid(format!(
-                "block size {}: must be 2…64 cells",
-                self.block_size
-            )));
+            return bad(
+                "block_size",
+                format!("{}: must be 2…64 cells", self.block_size),
+            );
         }
         if !(1..=1 << 20).contains(&self.spp) {
-            return Err(Error::invalid(format!(
-                "spp {}: samples per pixel must be 1…1048576",
-                self.spp
-            )));
+            return bad(
+                "spp",
+                format!("{}: samples per pixel must be 1…1048576", self.spp),
+            );
         }
-        self.medium.validate().map_err(Error::invalid)?;
+        self.medium.validate().map_err(|e| e.within("render"))?;
         for l in &self.lights {
-            l.validate().map_err(Error::invalid)?;
+            l.validate().map_err(|e| e.within("render"))?;
         }
         let t = &self.threshold;
         if t.steps
@@ -429,22 +439,29 @@ impl RenderParams {
             || t.bounds.iter().any(|b| b.is_nan())
             || t.bounds[0] > t.bounds[1]
         {
-            return Err(Error::invalid(format!(
-                "threshold: steps {:?} must be 0.001…64 voxels and bounds {:?} ordered",
-                t.steps, t.bounds
-            )));
+            return bad(
+                "threshold",
+                format!(
+                    "steps {:?} must be 0.001…64 voxels and bounds {:?} ordered",
+                    t.steps, t.bounds
+                ),
+            );
         }
         let a = &self.adaptive;
-        let bad =
+        let out =
             |s: Option<f32>| s.is_some_and(|s| !(s.is_finite() && (1e-3..=64.0).contains(&s)));
-        if !(a.k_ref.is_finite() && a.k_ref > 0.0) || bad(a.min_step) || bad(a.max_step) {
-            return Err(Error::invalid(
-                "adaptive: k_ref must be positive and min/max steps 0.001…64 voxels",
-            ));
+        if !(a.k_ref.is_finite() && a.k_ref > 0.0) || out(a.min_step) || out(a.max_step) {
+            return bad(
+                "adaptive",
+                "k_ref must be positive and min/max steps 0.001…64 voxels".into(),
+            );
         }
-        self.lod.validate()?;
+        self.lod.validate().map_err(|e| e.within("render"))?;
         if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
-            return Err(Error::invalid("background: each component must be in 0…1"));
+            return bad(
+                "background",
+                format!("{:?}: each component must be in 0…1", self.background),
+            );
         }
         Ok(())
     }

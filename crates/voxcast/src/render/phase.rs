@@ -227,14 +227,15 @@ impl PhaseFunction {
     }
 
     /// Checks the parameter range.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<(), crate::FieldError> {
         let ok = |x: f32| x.is_finite() && x.abs() < 0.999;
+        let bad = |m: String| Err(crate::FieldError::new("phase", m));
         match *self {
             PhaseFunction::Hg { g } | PhaseFunction::Mie { g } if !ok(g) => {
-                Err(format!("phase g = {g}: must be in (−0.999, 0.999)"))
+                bad(format!("g = {g}: must be in (−0.999, 0.999)"))
             }
             PhaseFunction::Schlick { k } if !ok(k) => {
-                Err(format!("phase k = {k}: must be in (−0.999, 0.999)"))
+                bad(format!("k = {k}: must be in (−0.999, 0.999)"))
             }
             _ => Ok(()),
         }
