@@ -39,8 +39,8 @@
 //!   included; [`DeviceChoice::Auto`] takes only hardware adapters and
 //!   returns [`GpuError::NoAdapter`] otherwise, so the caller can fall back
 //!   to the CPU renderer knowingly. Neither ever falls back silently.
-//! * [`GpuRenderer::render`] returns the core's [`Image`] (linear RGBA,
-//!   composited over the background) and [`RenderStats`], like
+//! * [`GpuRenderer::render`] returns the core's [`voxcast::Image`] (linear
+//!   RGBA, composited over the background) and [`voxcast::RenderStats`], like
 //!   [`voxcast::render::Renderer::render`].
 //!
 //! # Supported

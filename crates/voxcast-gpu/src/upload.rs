@@ -84,7 +84,7 @@ pub(crate) fn env_texture_limit() -> Option<u32> {
 /// `n = ⌈(dims − 1)/(L − 1)⌉` equal runs of `C = ⌈(dims − 1)/n⌉` cells; a
 /// brick holds the `C + 1` voxels of its cells (the last one fewer), so
 /// neighbouring bricks share one plane of voxels. Every brick is its own 3D
-/// texture (no side above `L`), bound in one of [`MAX_BRICKS`] fixed texture
+/// texture (no side above `L`), bound in one of `MAX_BRICKS` (8) fixed texture
 /// slots (bindings 1 and 9…15: no binding-array feature needed). The shader
 /// reconstructs a sample from the eight voxels of its cell, and with the
 /// shared plane all eight lie in the brick that owns the cell's lower corner

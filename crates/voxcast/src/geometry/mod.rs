@@ -9,7 +9,7 @@
 //! one by one.
 //!
 //! Where geometry comes from ([`Geometry::for_scene`]): a geometry file
-//! ([`file`]), the scene's `[geometry]` table, or, automatically, the
+//! ([`mod@file`]), the scene's `[geometry]` table, or, automatically, the
 //! `geometry.toml` beside a simulated volume or the OBST boxes of an FDS
 //! case.
 
@@ -231,7 +231,7 @@ fn read_def(path: &Path) -> Result<GeometryDef> {
 }
 
 impl Geometry {
-    /// Reads a geometry file (format in [`file`]); mesh paths are relative
+    /// Reads a geometry file (format in [`mod@file`]); mesh paths are relative
     /// to it.
     pub fn load(path: &Path) -> Result<Geometry> {
         let mut parts = Parts::default();

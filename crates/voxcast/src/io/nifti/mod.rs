@@ -2,7 +2,7 @@
 //! and header/image pairs (`.hdr` + `.img`, either gzipped; `ni1`/`ni2`
 //! magic), and Analyze 7.5 pairs (a 348-byte `.hdr` without the NIfTI
 //! magic), in either byte order. The three headers are parsed here (see
-//! [`header`]); the voxels are read by [`super::stored`] after the sizes the
+//! `header.rs`); the voxels are read by `io/stored.rs` after the sizes the
 //! header claims have been checked against the file, so a lying header
 //! cannot make us allocate. One path for all three:
 //!

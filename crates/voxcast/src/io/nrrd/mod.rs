@@ -35,7 +35,7 @@
 //! an error (a wrong header or another format's file, e.g. a `.nii.gz`).
 //!
 //! Element types, bounded reading and number parsing live in
-//! [`super::decode`], shared with the MetaImage and VTK readers.
+//! `io/decode.rs`, shared with the MetaImage and VTK readers.
 //!
 //! The parts: `header.rs` reads the header's fields (type, encoding),
 //! `space.rs` turns the space fields into axes, spacing and origin,
