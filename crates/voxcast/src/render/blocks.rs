@@ -104,6 +104,25 @@ pub(super) fn per_block<R: Send>(
         .collect()
 }
 
+/// Calls `f` with every stored value (not normalised) of the voxels
+/// `lo..=hi`, row by row: the walk the block grid's ranges and the octree's
+/// leaves share.
+#[inline]
+pub(crate) fn for_each_stored<T: Voxel>(
+    grid: &Grid<'_, T>,
+    lo: [usize; 3],
+    hi: [usize; 3],
+    mut f: impl FnMut(f32),
+) {
+    for k in lo[2]..=hi[2] {
+        for j in lo[1]..=hi[1] {
+            for v in &grid.row(j, k)[lo[0]..=hi[0]] {
+                f(v.to_f32());
+            }
+        }
+    }
+}
+
 /// Builds the block grid (value ranges) from a typed grid (see
 /// [`crate::volume::Volume::visit`]).
 pub struct BuildBlocks {
@@ -118,15 +137,10 @@ impl GridVisitor for BuildBlocks {
         let (scale, offset) = grid.scale_offset();
         let range = per_block(dims, b, |lo, hi| {
             let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-            for k in lo[2]..=hi[2] {
-                for j in lo[1]..=hi[1] {
-                    for v in &grid.row(j, k)[lo[0]..=hi[0]] {
-                        let v = v.to_f32();
-                        mn = mn.min(v);
-                        mx = mx.max(v);
-                    }
-                }
-            }
+            for_each_stored(grid, lo, hi, |v| {
+                mn = mn.min(v);
+                mx = mx.max(v);
+            });
             // Raw stored values normalised at the end (scale > 0).
             [mn * scale + offset, mx * scale + offset]
         });

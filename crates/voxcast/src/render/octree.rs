@@ -99,17 +99,12 @@ impl GridVisitor for BuildOctree {
         let counts = super::blocks::block_counts(dims, b);
         let leaves: Vec<Node> = super::blocks::per_block(dims, b, |lo, hi| {
             let (mut mn, mut mx, mut sum, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0.0f64, 0u64);
-            for k in lo[2]..=hi[2] {
-                for j in lo[1]..=hi[1] {
-                    for v in &grid.row(j, k)[lo[0]..=hi[0]] {
-                        let v = v.to_f32();
-                        mn = mn.min(v);
-                        mx = mx.max(v);
-                        sum += v as f64;
-                        n += 1;
-                    }
-                }
-            }
+            super::blocks::for_each_stored(grid, lo, hi, |v| {
+                mn = mn.min(v);
+                mx = mx.max(v);
+                sum += v as f64;
+                n += 1;
+            });
             Node {
                 min: mn * scale + offset,
                 max: mx * scale + offset,
