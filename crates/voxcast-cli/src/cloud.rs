@@ -5,8 +5,8 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::PathBuf;
-use voxcast::sim::cloud::{CloudOptions, CloudSim, CloudType};
 use voxcast::volume::series::SeriesWriter;
+use voxcast_sim::cloud::{CloudOptions, CloudSim, CloudType};
 
 pub const CLOUD_HELP: &str = "\
 The cloud is a particle system (paper S3): puffs (centre, radius) are filled

@@ -5,7 +5,7 @@ use clap::{Args, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::PathBuf;
-use voxcast::sim::{self, SmokeScene};
+use voxcast_sim::{self as sim, SmokeScene};
 
 pub const SIMULATE_HELP: &str = "\
 Examples:

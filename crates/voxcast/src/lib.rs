@@ -20,7 +20,6 @@ pub mod io;
 pub mod metrics;
 pub mod render;
 pub mod scene;
-pub mod sim;
 pub mod transfer;
 pub mod ttq;
 pub mod volume;

@@ -8,9 +8,9 @@
 //! Coordinates are metres, z up, the grid's corner at the origin: cell
 //! `(i, j, k)` spans `[i, i+1]·h × [j, j+1]·h × [k, k+1]·h` for cell size `h`.
 
-use crate::error::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use voxcast::error::{Error, Result};
 
 /// A box in metres (an obstacle or an opening).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -285,7 +285,7 @@ impl SmokeScene {
                 PRESETS.join(", ")
             )));
         }
-        let scene: SmokeScene = crate::files::read_toml(path)?;
+        let scene: SmokeScene = voxcast::files::read_toml(path)?;
         scene
             .validate()
             .map_err(|(f, m)| Error::format(path, f, m))?;

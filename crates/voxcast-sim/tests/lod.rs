@@ -2,15 +2,18 @@
 //! 1 it is `uniform`; skipping empty subtrees changes no pixel; decimation
 //! takes fewer samples and stays close to the reference.
 
+// The core's integration-test helpers (no_progress, max_diff), shared
+// rather than copied.
+#[path = "../../voxcast/tests/common/mod.rs"]
 mod common;
 use common::{max_diff, no_progress};
 
 use voxcast::camera::CameraParams;
 use voxcast::render::lod::LodParams;
 use voxcast::render::{Method, Order, RenderParams, RenderStats, Renderer};
-use voxcast::sim::cloud::{CloudOptions, CloudSim, CloudType};
 use voxcast::transfer::TransferFunction;
 use voxcast::{metrics, Image, Volume};
+use voxcast_sim::cloud::{CloudOptions, CloudSim, CloudType};
 
 fn cloud() -> Volume {
     let mut s = CloudSim::new(CloudOptions {

@@ -3,7 +3,7 @@
 
 use super::projection::for_free_faces;
 use super::Smoke;
-use crate::sim::pressure::SOLID;
+use crate::pressure::SOLID;
 use rayon::prelude::*;
 
 impl Smoke {

@@ -7,7 +7,7 @@
 //!    semi-Lagrangian back-tracing (§3, eq. 5);
 //! 3. Boussinesq buoyancy (eq. 8) and vorticity confinement (eq. 9–11);
 //! 4. the pressure projection (eq. 4) with multigrid-preconditioned CG
-//!    ([`super::pressure`]) to a stated tolerance.
+//!    ([`crate::pressure`]) to a stated tolerance.
 //!
 //! Solid cells (walls, furniture) have no flow through their faces
 //! (free-slip); open cells (a door, the end of a corridor) hold `p = 0`
@@ -25,11 +25,11 @@ mod forces;
 mod projection;
 mod semi_lagrangian;
 
-use super::pressure::{PressureSolver, SolveStats, FLUID, OPEN, SOLID};
-use super::scenes::SmokeScene;
-use crate::error::Result;
-use crate::volume::{Volume, VoxelData};
+use crate::pressure::{PressureSolver, SolveStats, FLUID, OPEN, SOLID};
+use crate::scenes::SmokeScene;
 use glam::Vec3;
+use voxcast::error::Result;
+use voxcast::volume::{Volume, VoxelData};
 
 /// What one step did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -111,7 +111,7 @@ impl Smoke {
     pub fn new(scene: &SmokeScene) -> Result<Smoke> {
         scene
             .validate()
-            .map_err(|(f, m)| crate::error::Error::invalid(format!("scene field `{f}`: {m}")))?;
+            .map_err(|(f, m)| voxcast::error::Error::invalid(format!("scene field `{f}`: {m}")))?;
         let dims = scene.grid;
         let [nx, ny, nz] = dims;
         let h = scene.cell_size;
@@ -158,7 +158,7 @@ impl Smoke {
             }
         }
         if source_cells.is_empty() {
-            return Err(crate::error::Error::invalid(format!(
+            return Err(voxcast::error::Error::invalid(format!(
                 "scene field `source`: the sphere at {:?} with radius {} m holds no fluid cell of the {}×{}×{} grid ({} m cells); move it inside the room or make it larger",
                 s.center, s.radius, nx, ny, nz, h
             )));
@@ -368,7 +368,7 @@ impl Smoke {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sim::scenes::{BoxSpec, SourceSpec};
+    use crate::scenes::{BoxSpec, SourceSpec};
 
     /// A small closed box with a table, a fire on the floor, and
     /// optionally a door.

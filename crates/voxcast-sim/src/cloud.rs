@@ -19,11 +19,11 @@
 //!   those farthest out in their puff, since the density falls from the core
 //!   to the edge.
 
-use crate::error::{Error, Result};
-use crate::volume::{Volume, VoxelData};
 use glam::Vec3;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use voxcast::error::{Error, Result};
+use voxcast::volume::{Volume, VoxelData};
 
 /// A cloud type: how puffs are laid out and shaped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

@@ -12,7 +12,7 @@
 //! the Galerkin product `Pᵀ A P` with piecewise-constant `P`, which is again
 //! a 7-point operator whose face coefficients count the fine fluid–fluid
 //! faces between two aggregates. So obstacles and openings carry to every
-//! level exactly, with no rule to invent (the half: see [`coarsen`]). Two
+//! level exactly, with no rule to invent (the half: see `coarsen`). Two
 //! red–black Gauss–Seidel sweeps smooth (red then black before the coarse
 //! correction, black then red after), and the
 //! coarsest level is solved by symmetric sweeps: the V-cycle is then a

@@ -3,8 +3,8 @@
 //! smoke skipped.
 
 use super::Smoke;
-use crate::sim::advect::face_flux;
-use crate::sim::pressure::{FLUID, OPEN};
+use crate::advect::face_flux;
+use crate::pressure::{FLUID, OPEN};
 use rayon::prelude::*;
 
 /// The longest grid row (cells along x) the density update's row buffers

@@ -1,8 +1,24 @@
-//! Simulators that produce volumes: cloud particle systems ([`cloud`]) and
-//! incompressible smoke with fire, heat,
-//! obstacles and openings ([`smoke`]), written frame by frame as a
-//! [`crate::volume::Series`] folder with the scene's solids beside it
-//! (`geometry.toml`, read by the renderer).
+//! voxcast-sim — the simulators that make the volumes voxcast renders.
+//!
+//! Two of the seed papers (SPEC.md) render data that a simulation
+//! produced; this crate makes that data, so the renderer can be measured on
+//! the scenes the papers describe:
+//!
+//! * [`smoke`]: incompressible smoke with fire, heat, obstacles and openings
+//!   (Fedkiw, Stam & Jensen 2001 on a MAC grid; [`advect`] the transport,
+//!   [`pressure`] the MGPCG pressure solve), the input of **S0** (Liu, Lu &
+//!   Chang 2021, block-adaptive sampling for indoor smoke). [`scenes`] holds
+//!   S0's fixed room, office and corridor as presets; [`simulate_smoke`]
+//!   writes a run frame by frame as a [`voxcast::volume::Series`] folder with
+//!   the scene's solids beside it (`geometry.toml`, read by the renderer).
+//! * [`cloud`]: **S3**'s particle-system cloud (Xie, Li & Kou): puffs filled
+//!   frame by frame that grow, change slowly and dissipate from the edge, the
+//!   particles splatted into a density grid — the volume S3's octree + LOD
+//!   marcher (`voxcast::render::lod`, in the core) renders.
+//!
+//! The renderer does not depend on this crate: it depends on the core
+//! (`voxcast`) for [`Volume`](voxcast::Volume), series folders and errors,
+//! and the CLI (`voxcast simulate smoke`, `voxcast cloud`) drives it.
 
 pub mod advect;
 pub mod cloud;
@@ -13,12 +29,12 @@ pub mod smoke;
 pub use scenes::SmokeScene;
 pub use smoke::{Smoke, StepStats};
 
-use crate::error::{Error, Result};
-use crate::files::write_file;
-use crate::volume::SeriesWriter;
 use serde::Serialize;
 use std::path::Path;
 use std::time::Instant;
+use voxcast::error::{Error, Result};
+use voxcast::files::write_file;
+use voxcast::volume::SeriesWriter;
 
 /// The solids file a smoke folder carries beside `series.toml`.
 pub const GEOMETRY: &str = "geometry.toml";

@@ -3,8 +3,8 @@
 //! MAC velocity.
 
 use super::Smoke;
-use crate::sim::advect::{Field, Mac};
-use crate::sim::pressure::FLUID;
+use crate::advect::{Field, Mac};
+use crate::pressure::FLUID;
 use rayon::prelude::*;
 
 impl Smoke {

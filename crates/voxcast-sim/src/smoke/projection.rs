@@ -3,7 +3,7 @@
 //! shares with the forces.
 
 use super::Smoke;
-use crate::sim::pressure::{SolveStats, FLUID};
+use crate::pressure::{SolveStats, FLUID};
 use rayon::prelude::*;
 
 impl Smoke {
