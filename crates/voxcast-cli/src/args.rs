@@ -448,7 +448,7 @@ impl RenderArgs {
 }
 
 /// `voxcast bench`: the default `--methods`.
-pub const DEFAULT_METHODS: &str = voxcast::bench::DEFAULT_METHODS;
+pub const DEFAULT_METHODS: &str = voxcast_bench::DEFAULT_METHODS;
 
 #[derive(Args)]
 pub struct BenchArgs {

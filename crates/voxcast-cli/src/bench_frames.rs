@@ -9,7 +9,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::io::Write;
 use std::path::PathBuf;
-use voxcast::bench_frames;
+use voxcast_bench::bench_frames;
 
 pub const BENCH_FRAMES_HELP: &str = "\
 Each selected frame of the series is loaded, its converged reference rendered
@@ -60,7 +60,7 @@ pub struct BenchFramesArgs {
 }
 
 pub fn run(a: BenchFramesArgs) -> Result<()> {
-    let mut methods = voxcast::bench::parse_methods(&a.methods)?;
+    let mut methods = voxcast_bench::parse_methods(&a.methods)?;
     if a.repeat == 0 {
         bail!("--repeat 0: at least one timed render per method is needed");
     }

@@ -12,7 +12,7 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{register_font, FontStyle};
 use std::sync::Once;
-use voxcast::bench::BenchReport;
+use voxcast_bench::BenchReport;
 
 const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 pub(crate) const FAMILY: &str = "sans-serif";

@@ -4,7 +4,7 @@
 use crate::chart::{font, FAMILY, PALETTE};
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
-use voxcast::bench_frames::FramesReport;
+use voxcast_bench::bench_frames::FramesReport;
 
 const SIZE: (u32, u32) = (1000, 560);
 
@@ -40,7 +40,7 @@ fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
     let root = root.margin(14, 14, 18, 24);
     let title = format!(
         "voxcast bench-frames — {}, {}×{}, {} threads",
-        voxcast::bench::input_label(&r.input),
+        voxcast_bench::input_label(&r.input),
         r.width,
         r.height,
         r.threads

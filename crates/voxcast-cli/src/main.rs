@@ -232,7 +232,7 @@ struct GpuMethods<'a> {
     tf: &'a voxcast::transfer::TransferFunction,
 }
 
-impl voxcast::bench::MethodRenderer for GpuMethods<'_> {
+impl voxcast_bench::MethodRenderer for GpuMethods<'_> {
     fn render(
         &self,
         params: &voxcast::render::RenderParams,
@@ -338,7 +338,7 @@ fn view(a: ViewArgs) -> Result<()> {
 }
 
 fn bench(a: BenchArgs) -> Result<()> {
-    use voxcast::bench;
+    use voxcast_bench as bench;
     let methods = bench::parse_methods(&a.methods)?;
     if a.repeat == 0 {
         bail!("--repeat 0: at least one timed render per method is needed");
@@ -477,7 +477,7 @@ fn time_to_quality(
     {
         methods.insert(0, voxcast::render::MethodSpec::parse("uniform")?);
     }
-    let config = voxcast::ttq::TtqConfig {
+    let config = voxcast_bench::ttq::TtqConfig {
         methods,
         target_psnr: target,
         repeat: a.repeat,
@@ -488,12 +488,12 @@ fn time_to_quality(
     if !std::io::stderr().is_terminal() || a.quiet {
         bar.set_draw_target(ProgressDrawTarget::hidden());
     }
-    let report = voxcast::ttq::run(scene, prepared, &config, &|m: &str| {
+    let report = voxcast_bench::ttq::run(scene, prepared, &config, &|m: &str| {
         bar.set_message(m.to_string());
         bar.tick();
     })?;
     bar.finish_and_clear();
-    print!("{}", voxcast::ttq::markdown(&report));
+    print!("{}", voxcast_bench::ttq::markdown(&report));
     if let Some(f) = &a.json {
         let json = serde_json::to_string_pretty(&report)?;
         outputs.write(f, |w| writeln!(w, "{json}"))?;

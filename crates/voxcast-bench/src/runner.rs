@@ -2,21 +2,21 @@
 //! methods' warm-up and timed renders interleaved round by round, each
 //! compared with the reference, gathered into a [`BenchReport`].
 
-use super::reference::{
+use crate::reference::{
     cache_paths, load_cached, reference_key, reference_params, store_cached, CacheMeta,
     REFERENCE_FORMAT,
 };
-use super::report::{
+use crate::report::{
     input_label, BenchReport, CacheStatus, Machine, Measured, MethodResult, ReferenceInfo, RunInfo,
     SceneInfo,
 };
-use super::{median, method_params, BenchConfig, Progress};
-use crate::error::{Error, Result};
-use crate::image::Image;
-use crate::metrics;
-use crate::render::{Method, MethodSpec, RenderParams, RenderStats, Renderer};
-use crate::scene::{Prepared, Scene};
+use crate::{median, method_params, BenchConfig, Progress};
 use std::time::Instant;
+use voxcast::error::{Error, Result};
+use voxcast::image::Image;
+use voxcast::metrics;
+use voxcast::render::{Method, MethodSpec, RenderParams, RenderStats, Renderer};
+use voxcast::scene::{Prepared, Scene};
 
 struct Slot {
     spec: MethodSpec,
@@ -344,7 +344,7 @@ pub fn run_on(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::{markdown, parse_methods, text_table};
+    use crate::{markdown, parse_methods, text_table};
 
     #[test]
     fn run_measures_every_method_and_caches_the_reference() {

@@ -3,15 +3,15 @@
 //! FNV-1a hash of the reference scene and of every voxel) and its cache
 //! files (a linear float EXR and a JSON sidecar).
 
-use crate::error::{Error, Result};
-use crate::files::write_file;
-use crate::image::Image;
-use crate::render::{Method, RenderParams, RenderStats};
-use crate::scene::{Prepared, Scene};
-use crate::volume::{Volume, VoxelData};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
+use voxcast::error::{Error, Result};
+use voxcast::files::write_file;
+use voxcast::image::Image;
+use voxcast::render::{Method, RenderParams, RenderStats};
+use voxcast::scene::{Prepared, Scene};
+use voxcast::volume::{Volume, VoxelData};
 
 /// Step of the reference render, in voxels.
 pub const REFERENCE_STEP: f32 = 1.0 / 16.0;

@@ -16,12 +16,12 @@
 //! method tried, the one with the highest PSNR that rendered within a time
 //! budget — by default the time `uniform` takes to reach the target.
 
-use crate::bench::{median, reference_params};
-use crate::error::{Error, Result};
-use crate::metrics;
-use crate::render::{MethodSpec, RenderParams, Renderer};
-use crate::scene::{Prepared, Scene};
+use crate::{median, reference_params};
 use serde::Serialize;
+use voxcast::error::{Error, Result};
+use voxcast::metrics;
+use voxcast::render::{MethodSpec, RenderParams, Renderer};
+use voxcast::scene::{Prepared, Scene};
 
 /// What to measure.
 #[derive(Clone, Debug)]

@@ -5,13 +5,13 @@
 //! timing), and compared with that frame's converged reference (uniform at
 //! 1/16 voxel, no early termination, no skipping).
 
-use crate::bench::{method_params, reference_params};
-use crate::error::Result;
-use crate::metrics;
-use crate::render::{MethodSpec, Renderer};
-use crate::scene::Scene;
-use crate::volume::Series;
+use crate::{method_params, reference_params};
 use serde::Serialize;
+use voxcast::error::Result;
+use voxcast::metrics;
+use voxcast::render::{MethodSpec, Renderer};
+use voxcast::scene::Scene;
+use voxcast::volume::Series;
 
 /// One method on one frame.
 #[derive(Clone, Debug, Serialize)]
@@ -89,7 +89,7 @@ pub fn run(
             .map(|m| method_params(&scene.render, m))
             .collect();
         // One untimed render per method first (caches, derived structures).
-        let mut best: Vec<Option<(f64, u64, crate::Image)>> = vec![None; methods.len()];
+        let mut best: Vec<Option<(f64, u64, voxcast::Image)>> = vec![None; methods.len()];
         for p in &params {
             renderer.render(&prepared.tf, &scene.camera, p, &|_, _| {})?;
         }
@@ -202,7 +202,7 @@ pub fn markdown(r: &FramesReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::volume::SeriesWriter;
+    use voxcast::volume::SeriesWriter;
 
     /// On a small synthetic series: uniform against itself has speed-up 1,
     /// a method that renders the same image as the reference would get ∞,
@@ -213,7 +213,7 @@ mod tests {
         let d = dir.path().join("s");
         let mut w = SeriesWriter::create(&d, None, None).unwrap();
         for f in 0..3 {
-            let v = crate::Volume::from_fn([16, 16, 16], glam::Vec3::ONE, |i, j, k| {
+            let v = voxcast::Volume::from_fn([16, 16, 16], glam::Vec3::ONE, |i, j, k| {
                 let r = ((i as f32 - 8.0).powi(2)
                     + (j as f32 - 8.0).powi(2)
                     + (k as f32 - 4.0 - f as f32 * 2.0).powi(2))

@@ -2,9 +2,9 @@
 //! the reference and one row per method; serialises to the JSON of
 //! `voxcast bench --json`.
 
-use crate::scene::BUILTIN_PREFIX;
 use serde::{Serialize, Serializer};
 use std::path::{Component, Path, PathBuf};
+use voxcast::scene::BUILTIN_PREFIX;
 
 /// The scene the methods were compared on.
 #[derive(Clone, Debug, Serialize)]
@@ -51,7 +51,8 @@ impl Machine {
         Machine {
             threads: rayon::current_num_threads(),
             cpu: cpu_model(),
-            simd: crate::render::simd_level(crate::render::Simd::Auto).map_or("none", |l| l.name()),
+            simd: voxcast::render::simd_level(voxcast::render::Simd::Auto)
+                .map_or("none", |l| l.name()),
             os: std::env::consts::OS,
             arch: std::env::consts::ARCH,
         }
@@ -85,7 +86,7 @@ pub enum CacheStatus {
 pub struct ReferenceInfo {
     /// Always `uniform`.
     pub method: String,
-    /// Step in voxels ([`REFERENCE_STEP`](super::REFERENCE_STEP)).
+    /// Step in voxels ([`REFERENCE_STEP`](crate::REFERENCE_STEP)).
     pub step: f32,
     /// Early ray termination threshold (1: off).
     pub ert: f32,
@@ -103,7 +104,7 @@ pub struct ReferenceInfo {
     /// The cached EXR (linear float RGBA), when there is one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cache_file: Option<PathBuf>,
-    /// The cache key, 16 hex digits ([`reference_key`](super::reference_key)).
+    /// The cache key, 16 hex digits ([`reference_key`](crate::reference_key)).
     pub key: String,
 }
 
@@ -171,7 +172,7 @@ pub struct RunInfo {
     pub voxcast_version: &'static str,
 }
 
-/// The result of [`run`](super::run); serialises to the JSON of `voxcast bench --json`.
+/// The result of [`run`](crate::run); serialises to the JSON of `voxcast bench --json`.
 #[derive(Clone, Debug, Serialize)]
 pub struct BenchReport {
     pub scene: SceneInfo,

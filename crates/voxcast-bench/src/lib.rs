@@ -1,12 +1,28 @@
-//! `voxcast bench`: sampling methods compared on one scene.
+//! voxcast-bench — how fast each sampling method is, and how good its
+//! picture: the measurements the seed papers' tables and figures make
+//! (SPEC.md), made again on this renderer.
+//!
+//! * This file and its parts: `voxcast bench`, every method on one scene
+//!   against a converged reference — S0's samples-and-time table (uniform,
+//!   Zeng's threshold ranges, the block-adaptive sampling), S3's fps table
+//!   (uniform, importance, LOD decimation).
+//! * [`bench_frames`]: `voxcast bench-frames`, the frame rate of every method
+//!   frame by frame over a series (S0's Table 3 and Fig. 14).
+//! * [`ttq`]: time to quality, the fair comparison of Riemann-sum marchers
+//!   with S1's Monte-Carlo ones (each method's cost to reach a PSNR).
+//!
+//! It depends on the core (`voxcast`) for scenes, the renderer and the
+//! metrics; the core does not depend on it.
+//!
+//! # `voxcast bench`: sampling methods compared on one scene
 //!
 //! Every method renders the same volume, transfer function, camera and image
-//! size through one [`Renderer`](crate::render::Renderer) (its derived structures are built once, so
+//! size through one [`Renderer`](voxcast::render::Renderer) (its derived structures are built once, so
 //! the times measure rendering, not set-up). For each method the report gives
 //! the work done (samples, trilinear interpolations), the wall-clock time of
 //! `repeat` renders after `warmup` untimed ones (median, min, max), the
 //! speed-up over `uniform`, and the error against a **reference render**:
-//! PSNR and SSIM ([`crate::metrics`]) against the same scene rendered with
+//! PSNR and SSIM ([`voxcast::metrics`]) against the same scene rendered with
 //! the uniform marcher at 1/16 voxel, without early ray termination, without
 //! empty-space skipping (so the reference does not rely on any of the
 //! accelerations being measured), without jitter or grouping.
@@ -18,7 +34,7 @@
 //! the library version.
 //!
 //! Times are wall-clock milliseconds measured with [`Instant`](std::time::Instant) around
-//! [`Renderer::render`](crate::render::Renderer::render) (which includes baking the transfer-function table
+//! [`Renderer::render`](voxcast::render::Renderer::render) (which includes baking the transfer-function table
 //! and fitting the camera, both negligible). Renders of the methods are
 //! interleaved round by round, so a slow spell of a shared machine spreads
 //! over all methods instead of penalising one.
@@ -28,10 +44,12 @@
 //! what a run reports (the JSON of `--json`); `table.rs` the report as a
 //! Markdown or plain-text table. This file holds the configuration.
 
+pub mod bench_frames;
 mod reference;
 mod report;
 mod runner;
 mod table;
+pub mod ttq;
 
 pub use reference::{fnv1a64, reference_key, reference_params, Fnv1a, REFERENCE_STEP};
 pub use report::{
@@ -41,9 +59,9 @@ pub use report::{
 pub use runner::{run, run_on, MethodRenderer};
 pub use table::{markdown, text_table};
 
-use crate::error::{Error, Result};
-use crate::render::{Method, MethodSpec, RenderParams};
 use std::path::PathBuf;
+use voxcast::error::{Error, Result};
+use voxcast::render::{Method, MethodSpec, RenderParams};
 
 /// The methods compared when none are named.
 pub const DEFAULT_METHODS: &str = "uniform,adaptive,adaptive+grouped,threshold";

@@ -1,7 +1,7 @@
 //! The report as a table: Markdown (for the README) or aligned plain text,
 //! with the scene, the machine and the reference stated above it.
 
-use super::report::{BenchReport, CacheStatus, Measured};
+use crate::report::{BenchReport, CacheStatus, Measured};
 
 /// `1234567` → `1,234,567`.
 fn grouped_int(n: u64) -> String {
@@ -205,7 +205,7 @@ pub fn text_table(report: &BenchReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bench::input_label;
+    use crate::input_label;
 
     #[test]
     fn labels_and_numbers() {
