@@ -157,6 +157,20 @@ pub fn run(
     })
 }
 
+/// `p` (dB) to one decimal, `∞` for `None` (identical to the reference).
+fn db(p: Option<f64>) -> String {
+    p.map(|p| format!("{p:.1}")).unwrap_or("∞".into())
+}
+
+/// One method's cells on one frame: ms, fps and PSNR (dB), to one decimal.
+fn cells(x: &MethodFrame) -> [String; 3] {
+    [
+        format!("{:.1}", x.ms),
+        format!("{:.1}", x.fps),
+        db(x.psnr_db),
+    ]
+}
+
 /// The report as a Markdown table: one row per frame (time, then ms / fps
 /// / PSNR per method), then the summary.
 pub fn markdown(r: &FramesReport) -> String {
@@ -172,12 +186,8 @@ pub fn markdown(r: &FramesReport) -> String {
     for row in &r.frames {
         s.push_str(&format!("| {} | {:.1} |", row.frame, row.time));
         for x in &row.results {
-            s.push_str(&format!(
-                " {:.1} | {:.1} | {} |",
-                x.ms,
-                x.fps,
-                x.psnr_db.map(|p| format!("{p:.1}")).unwrap_or("∞".into())
-            ));
+            let [ms, fps, psnr] = cells(x);
+            s.push_str(&format!(" {ms} | {fps} | {psnr} |"));
         }
         s.push('\n');
     }
@@ -194,6 +204,41 @@ pub fn markdown(r: &FramesReport) -> String {
                 (Some(a), Some(b)) => format!("{a:.1}, {b:.1}"),
                 _ => "∞".into(),
             }
+        ));
+    }
+    s
+}
+
+/// The report as aligned plain text: what was measured, one line per frame
+/// (time, then ms / fps / PSNR per method), then a line per method.
+pub fn text_table(r: &FramesReport) -> String {
+    let mut s = format!(
+        "{} — {}×{}, {} threads, best of {} renders per method and frame\n",
+        r.input, r.width, r.height, r.threads, r.repeat
+    );
+    s.push_str(&format!("{:>6} {:>8}", "frame", "t"));
+    for m in &r.methods {
+        s.push_str(&format!(" | {:>18} {:>7} {:>7}", m, "fps", "PSNR"));
+    }
+    s.push('\n');
+    for row in &r.frames {
+        s.push_str(&format!("{:>6} {:>8.2}", row.frame, row.time));
+        for x in &row.results {
+            let [ms, fps, psnr] = cells(x);
+            s.push_str(&format!(" | {ms:>15} ms {fps:>7} {psnr:>7}"));
+        }
+        s.push('\n');
+    }
+    s.push('\n');
+    for m in &r.summary {
+        s.push_str(&format!(
+            "{:<20} mean {:>7.1} fps, {:.2}× uniform (min {:.2}, max {:.2}), PSNR mean {} dB\n",
+            m.name,
+            m.mean_fps,
+            m.mean_speedup,
+            m.min_speedup,
+            m.max_speedup,
+            db(m.mean_psnr_db)
         ));
     }
     s
@@ -250,5 +295,7 @@ mod tests {
         }
         let md = markdown(&r);
         assert!(md.contains("adaptive+grouped") && md.lines().count() > 6);
+        let text = text_table(&r);
+        assert!(text.contains("adaptive+grouped") && text.lines().count() > 6);
     }
 }

@@ -10,6 +10,8 @@
 //!   frame by frame over a series (S0's Table 3 and Fig. 14).
 //! * [`ttq`]: time to quality, the fair comparison of Riemann-sum marchers
 //!   with S1's Monte-Carlo ones (each method's cost to reach a PSNR).
+//! * [`chart`]: the two reports as PNG charts (plotters, with an embedded
+//!   font).
 //!
 //! It depends on the core (`voxcast`) for scenes, the renderer and the
 //! metrics; the core does not depend on it.
@@ -45,6 +47,7 @@
 //! Markdown or plain-text table. This file holds the configuration.
 
 pub mod bench_frames;
+pub mod chart;
 mod reference;
 mod report;
 mod runner;

@@ -110,55 +110,16 @@ pub fn run(a: BenchFramesArgs) -> Result<()> {
     if a.markdown {
         print!("{}", bench_frames::markdown(&report));
     } else {
-        print!("{}", text(&report));
+        print!("{}", bench_frames::text_table(&report));
     }
     if let Some(f) = &a.json {
         let json = serde_json::to_string_pretty(&report)?;
         outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
     if let Some(f) = &a.chart {
-        let png = crate::frames_chart::png(&report)?;
+        let png = voxcast_bench::chart::frames_png(&report)?;
         outputs.write(f, |w| w.write_all(&png))?;
     }
     outputs.commit()?;
     Ok(())
-}
-
-fn text(r: &bench_frames::FramesReport) -> String {
-    let mut s = format!(
-        "{} — {}×{}, {} threads, best of {} renders per method and frame\n",
-        r.input, r.width, r.height, r.threads, r.repeat
-    );
-    s.push_str(&format!("{:>6} {:>8}", "frame", "t"));
-    for m in &r.methods {
-        s.push_str(&format!(" | {:>18} {:>7} {:>7}", m, "fps", "PSNR"));
-    }
-    s.push('\n');
-    for row in &r.frames {
-        s.push_str(&format!("{:>6} {:>8.2}", row.frame, row.time));
-        for x in &row.results {
-            s.push_str(&format!(
-                " | {:>15.1} ms {:>7.1} {:>7}",
-                x.ms,
-                x.fps,
-                x.psnr_db.map(|p| format!("{p:.1}")).unwrap_or("∞".into())
-            ));
-        }
-        s.push('\n');
-    }
-    s.push('\n');
-    for m in &r.summary {
-        s.push_str(&format!(
-            "{:<20} mean {:>7.1} fps, {:.2}× uniform (min {:.2}, max {:.2}), PSNR mean {} dB\n",
-            m.name,
-            m.mean_fps,
-            m.mean_speedup,
-            m.min_speedup,
-            m.max_speedup,
-            m.mean_psnr_db
-                .map(|p| format!("{p:.1}"))
-                .unwrap_or("∞".into())
-        ));
-    }
-    s
 }

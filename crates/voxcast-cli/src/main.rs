@@ -4,9 +4,7 @@
 mod animate;
 mod args;
 mod bench_frames;
-mod chart;
 mod cloud;
-mod frames_chart;
 mod simulate;
 
 use anyhow::{bail, Context, Result};
@@ -445,7 +443,7 @@ fn bench(a: BenchArgs) -> Result<()> {
         outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
     if let Some(f) = &a.chart {
-        let png = chart::png(&report).context("drawing the chart")?;
+        let png = bench::chart::bench_png(&report).context("drawing the chart")?;
         outputs.write(f, |w| w.write_all(&png))?;
     }
     outputs.commit()?;

@@ -1,31 +1,20 @@
 //! `voxcast bench-frames --chart`: frame rate against frame, one line per
 //! method (S0 Fig. 14), as a PNG.
 
-use crate::chart::{font, FAMILY, PALETTE};
-use anyhow::{anyhow, Result};
+use super::{axes, canvas, drawing, encode, font, FAMILY, PALETTE};
+use crate::bench_frames::FramesReport;
 use plotters::prelude::*;
-use voxcast_bench::bench_frames::FramesReport;
+use voxcast::error::Result;
 
 const SIZE: (u32, u32) = (1000, 560);
 
 /// The chart of `report` as PNG bytes.
 pub fn png(report: &FramesReport) -> Result<Vec<u8>> {
-    let (w, h) = SIZE;
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    draw(report, &mut buf)?;
-    let mut out = Vec::new();
-    let mut enc = png::Encoder::new(&mut out, w, h);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut wr = enc.write_header()?;
-    wr.write_image_data(&buf)?;
-    wr.finish()?;
-    Ok(out)
+    encode(SIZE, |buf| draw(report, buf))
 }
 
 fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
     font()?;
-    let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing the chart: {e}");
     let x0 = r.frames.first().map(|f| f.frame).unwrap_or(0) as f64;
     let x1 = (r.frames.last().map(|f| f.frame).unwrap_or(1) as f64).max(x0 + 1.0);
     let y1 = r
@@ -35,12 +24,10 @@ fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
         .fold(0.0, f64::max)
         .max(1.0)
         * 1.15;
-    let root = BitMapBackend::with_buffer(buf, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.margin(14, 14, 18, 24);
+    let root = canvas(buf, SIZE)?;
     let title = format!(
         "voxcast bench-frames — {}, {}×{}, {} threads",
-        voxcast_bench::input_label(&r.input),
+        crate::input_label(&r.input),
         r.width,
         r.height,
         r.threads
@@ -50,14 +37,10 @@ fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
         .x_label_area_size(40)
         .y_label_area_size(60)
         .build_cartesian_2d(x0..x1, 0.0..y1)
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .x_desc("frame")
-        .y_desc("frames per second (best of repeats)")
-        .label_style((FAMILY, 15))
+        .map_err(drawing)?;
+    axes(&mut chart, "frame", "frames per second (best of repeats)")
         .draw()
-        .map_err(err)?;
+        .map_err(drawing)?;
     for (m, s) in r.summary.iter().enumerate() {
         let color = PALETTE[m % PALETTE.len()];
         let pts: Vec<(f64, f64)> = r
@@ -70,7 +53,7 @@ fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
                 pts.clone(),
                 color.stroke_width(2),
             )))
-            .map_err(err)?
+            .map_err(drawing)?
             .label(format!(
                 "{} (mean {:.1} fps, {:.2}× uniform)",
                 s.name, s.mean_fps, s.mean_speedup
@@ -80,7 +63,7 @@ fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
             });
         chart
             .draw_series(pts.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(err)?;
+            .map_err(drawing)?;
     }
     chart
         .configure_series_labels()
@@ -89,7 +72,7 @@ fn draw(r: &FramesReport, buf: &mut [u8]) -> Result<()> {
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
-        .map_err(err)?;
-    root.present().map_err(err)?;
+        .map_err(drawing)?;
+    root.present().map_err(drawing)?;
     Ok(())
 }

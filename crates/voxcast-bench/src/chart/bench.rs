@@ -1,45 +1,14 @@
 //! `voxcast bench --chart`: median render time against PSNR, one labelled
-//! point per method, as a PNG.
-//!
-//! Text is drawn with DejaVu Sans embedded in the binary (see
-//! `assets/DejaVuSans-LICENSE.txt`), so the chart looks the same on a machine
-//! without system fonts; plotters draws into an RGB buffer that the `png`
-//! crate encodes (no image crate, no font-kit).
+//! point per method.
 
-use anyhow::{anyhow, Result};
+use super::{axes, canvas, drawing, encode, font, FAMILY, PALETTE};
+use crate::BenchReport;
 use plotters::element::DashedPathElement;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
-use plotters::style::{register_font, FontStyle};
-use std::sync::Once;
-use voxcast_bench::BenchReport;
+use voxcast::error::Result;
 
-const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-pub(crate) const FAMILY: &str = "sans-serif";
 const SIZE: (u32, u32) = (1000, 660);
-
-/// Colour-blind-safe palette (Okabe & Ito 2008).
-pub(crate) const PALETTE: [RGBColor; 8] = [
-    RGBColor(0, 114, 178),
-    RGBColor(213, 94, 0),
-    RGBColor(0, 158, 115),
-    RGBColor(204, 121, 167),
-    RGBColor(230, 159, 0),
-    RGBColor(86, 180, 233),
-    RGBColor(120, 120, 120),
-    RGBColor(0, 0, 0),
-];
-
-pub(crate) fn font() -> Result<()> {
-    static ONCE: Once = Once::new();
-    let mut ok = true;
-    ONCE.call_once(|| ok = register_font(FAMILY, FontStyle::Normal, FONT).is_ok());
-    if ok {
-        Ok(())
-    } else {
-        Err(anyhow!("the embedded chart font could not be read"))
-    }
-}
 
 /// One point of the chart.
 struct Point {
@@ -54,18 +23,7 @@ struct Point {
 
 /// The chart of `report` as PNG bytes.
 pub fn png(report: &BenchReport) -> Result<Vec<u8>> {
-    let (w, h) = SIZE;
-    let mut buf = vec![255u8; (w * h * 3) as usize];
-    draw(report, &mut buf)?;
-    let mut out = Vec::new();
-    let mut enc = png::Encoder::new(&mut out, w, h);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-    let mut wr = enc.write_header()?;
-    wr.write_image_data(&buf)?;
-    wr.finish()?;
-    Ok(out)
+    encode(SIZE, |buf| draw(report, buf))
 }
 
 /// Axis range with some air around `lo…hi`.
@@ -77,7 +35,6 @@ fn padded(lo: f64, hi: f64, frac: f64, min_span: f64) -> (f64, f64) {
 
 fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
     font()?;
-    let err = |e: DrawingAreaErrorKind<_>| anyhow!("drawing the chart: {e}");
     let points: Vec<Point> = report
         .methods
         .iter()
@@ -126,28 +83,26 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
         (1.0 / report.reference.step).round()
     );
 
-    let root = BitMapBackend::with_buffer(buf, SIZE).into_drawing_area();
-    root.fill(&WHITE).map_err(err)?;
-    let root = root.margin(14, 14, 18, 24);
+    let root = canvas(buf, SIZE)?;
     let (top, body) = root.split_vertically(62);
     top.draw(&Text::new(
         title,
         (0, 0),
         (FAMILY, 26).into_font().color(&BLACK),
     ))
-    .map_err(err)?;
+    .map_err(drawing)?;
     top.draw(&Text::new(
         subtitle,
         (0, 34),
         (FAMILY, 15).into_font().color(&RGBColor(90, 90, 90)),
     ))
-    .map_err(err)?;
+    .map_err(drawing)?;
 
     let mut chart = ChartBuilder::on(&body)
         .x_label_area_size(52)
         .y_label_area_size(64)
         .build_cartesian_2d(0.0..x_max, y_lo..y_top)
-        .map_err(err)?;
+        .map_err(drawing)?;
     let y_fmt = |v: &f64| {
         if *v > y_hi + 1e-9 {
             String::new()
@@ -164,18 +119,18 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
             format!("{v:.0}")
         }
     };
-    chart
-        .configure_mesh()
-        .x_desc("median render time (ms) — lower is faster")
-        .y_desc("PSNR against the reference (dB) — higher is better")
-        .axis_desc_style((FAMILY, 17))
-        .label_style((FAMILY, 15))
-        .x_label_formatter(&x_fmt)
-        .y_label_formatter(&y_fmt)
-        .light_line_style(WHITE)
-        .bold_line_style(RGBColor(225, 225, 225))
-        .draw()
-        .map_err(err)?;
+    axes(
+        &mut chart,
+        "median render time (ms) — lower is faster",
+        "PSNR against the reference (dB) — higher is better",
+    )
+    .axis_desc_style((FAMILY, 17))
+    .x_label_formatter(&x_fmt)
+    .y_label_formatter(&y_fmt)
+    .light_line_style(WHITE)
+    .bold_line_style(RGBColor(225, 225, 225))
+    .draw()
+    .map_err(drawing)?;
 
     // What a label must not cover, in pixels: (y centre, half height, x0, x1).
     let mut taken: Vec<(i32, i32, i32, i32)> = Vec::new();
@@ -188,7 +143,7 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
                 4,
                 grey.stroke_width(1),
             )))
-            .map_err(err)?;
+            .map_err(drawing)?;
         let note = "identical to the reference";
         chart
             .draw_series(std::iter::once(
@@ -202,11 +157,11 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
                             .pos(Pos::new(HPos::Left, VPos::Center)),
                     ),
             ))
-            .map_err(err)?;
+            .map_err(drawing)?;
         let (px, py) = chart.backend_coord(&(0.0, y_inf));
         let (w, _) = body
             .estimate_text_size(note, &(FAMILY, 14).into_text_style(&body))
-            .map_err(err)?;
+            .map_err(drawing)?;
         taken.push((py - 11, 9, px, px + 8 + w as i32));
         // "∞" on the y axis, where the row of identical images is.
         let base = body.get_base_pixel();
@@ -218,7 +173,7 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
                 .color(&BLACK)
                 .pos(Pos::new(HPos::Right, VPos::Center)),
         ))
-        .map_err(err)?;
+        .map_err(drawing)?;
     }
 
     // Min–max bars and markers.
@@ -230,18 +185,18 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
                 [(p.ms_min, y), (p.ms_max, y)],
                 style,
             )))
-            .map_err(err)?;
+            .map_err(drawing)?;
         let cap = |x: f64| {
             EmptyElement::at((x, y)) + PathElement::new([(0, -5), (0, 5)], p.color.stroke_width(2))
         };
         chart
             .draw_series([cap(p.ms_min), cap(p.ms_max)])
-            .map_err(err)?;
+            .map_err(drawing)?;
         let at = (p.ms, y);
         if p.psnr.is_some() {
             chart
                 .draw_series(std::iter::once(Circle::new(at, 7, p.color.filled())))
-                .map_err(err)?;
+                .map_err(drawing)?;
         } else {
             chart
                 .draw_series(std::iter::once(TriangleMarker::new(
@@ -249,7 +204,7 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
                     9,
                     p.color.filled(),
                 )))
-                .map_err(err)?;
+                .map_err(drawing)?;
         }
         let (px, py) = chart.backend_coord(&at);
         let (bx0, _) = chart.backend_coord(&(p.ms_min, y));
@@ -276,7 +231,7 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
         let (px, py) = chart.backend_coord(&at);
         let (tw, _) = body
             .estimate_text_size(&p.label, &label_font)
-            .map_err(err)?;
+            .map_err(drawing)?;
         let tw = tw as i32;
         let half = 9;
         let fits = |dx: i32, dy: i32| {
@@ -322,7 +277,7 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
                         label_font.pos(Pos::new(anchor, VPos::Center)),
                     ),
             ))
-            .map_err(err)?;
+            .map_err(drawing)?;
     }
 
     if points.is_empty() {
@@ -331,8 +286,8 @@ fn draw(report: &BenchReport, buf: &mut [u8]) -> Result<()> {
             (300, 250),
             (FAMILY, 22).into_font().color(&RED),
         ))
-        .map_err(err)?;
+        .map_err(drawing)?;
     }
-    root.present().map_err(err)?;
+    root.present().map_err(drawing)?;
     Ok(())
 }
