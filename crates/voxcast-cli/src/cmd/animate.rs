@@ -2,129 +2,13 @@
 //! simulator's frame folder, an FDS case, a folder or glob of volumes —
 //! with one scene, into a GIF, an MP4 (through ffmpeg) or numbered PNGs.
 
-use crate::args::SceneArgs;
+use super::series::{fix_transfer, scene_and_series, select};
+use crate::args::AnimateArgs;
 use anyhow::{bail, Context, Result};
-use clap::Args;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
-use voxcast::render::MethodSpec;
-use voxcast::scene::Scene;
-use voxcast::volume::Series;
-
-pub const ANIMATE_HELP: &str = "\
-INPUT is a series: a frame folder written by `voxcast simulate` (series.toml),
-an FDS case (.smv: the soot SMOKE3D frames, or --var QUANTITY), or a folder or
-glob of volume files (one frame each, sorted by name). Every selected frame is
-rendered with the same scene (transfer function, camera, method, size); the
-transfer function's window is fixed from the last selected frame (unless
---window is given) so that the animation does not flicker.
-
-Output by name: out.gif (per-frame NeuQuant palette), out.mp4 (needs ffmpeg on
-PATH: raw RGB frames are piped to it; without ffmpeg nothing is written and the
-command fails), or DIR/ (frame_00000.png, …). Every file is written under a
-temporary name and renamed at the end.
-
-Examples:
-  voxcast animate room/ -o room.gif --tf smoke --azimuth 30 --elevation 20
-  voxcast animate ../shared/data/fds_room/room_smoke.smv -o fds.gif --every 2 --fps 12
-  voxcast animate office/ -o office.mp4 --frames 100..400 --method adaptive+grouped
-  voxcast animate office/ -o frames/ --size 256x256 --stats-json frames.json";
-
-#[derive(Args)]
-pub struct AnimateArgs {
-    #[command(flatten)]
-    pub scene: SceneArgs,
-    /// Output: FILE.gif, FILE.mp4 (needs ffmpeg) or a folder DIR/ for PNGs.
-    #[arg(short, long, value_name = "OUT")]
-    pub output: PathBuf,
-    /// Sampling method (as for render: uniform, adaptive, adaptive-max,
-    /// threshold; +grouped, +noskip).
-    #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
-    pub method: Option<String>,
-    /// Frames per second of the GIF/MP4.
-    #[arg(long, default_value_t = 10.0, help_heading = "Frames")]
-    pub fps: f64,
-    /// Take every N-th frame of the selection.
-    #[arg(long, value_name = "N", default_value_t = 1, help_heading = "Frames")]
-    pub every: usize,
-    /// Frame range A..B (B excluded; A.., ..B and A..=B also work), frame indices from 0.
-    #[arg(long, value_name = "A..B", help_heading = "Frames")]
-    pub frames: Option<String>,
-    /// Write per-frame statistics (time, render seconds, rays, samples) as JSON.
-    #[arg(long, value_name = "FILE")]
-    pub stats_json: Option<PathBuf>,
-    /// No progress bar or summary.
-    #[arg(short, long)]
-    pub quiet: bool,
-}
-
-/// Parses `A..B`, `A..=B`, `A..`, `..B` into indices of a series of `n`.
-pub fn select(spec: Option<&str>, every: usize, n: usize) -> Result<Vec<usize>> {
-    if every == 0 {
-        bail!("--every 0: expected 1 or more");
-    }
-    let (a, b) = match spec {
-        None => (0, n),
-        Some(s) => {
-            let (l, r, incl) = if let Some((l, r)) = s.split_once("..=") {
-                (l, r, true)
-            } else if let Some((l, r)) = s.split_once("..") {
-                (l, r, false)
-            } else {
-                bail!("--frames {s}: expected A..B (e.g. 0..100, 50.., ..=20)");
-            };
-            let num = |t: &str, d: usize| -> Result<usize> {
-                if t.trim().is_empty() {
-                    Ok(d)
-                } else {
-                    t.trim()
-                        .parse()
-                        .map_err(|_| anyhow::anyhow!("--frames {s}: `{t}` is not a frame index"))
-                }
-            };
-            let a = num(l, 0)?;
-            let b = num(r, n)? + usize::from(incl && !r.trim().is_empty());
-            (a, b.min(n))
-        }
-    };
-    let v: Vec<usize> = (a..b).step_by(every).collect();
-    if v.is_empty() {
-        bail!(
-            "--frames {}: selects no frame of the {n} in the series",
-            spec.unwrap_or("")
-        );
-    }
-    Ok(v)
-}
-
-/// The scene and the series these flags imply; the transfer function and
-/// window are fixed from the last selected frame.
-pub fn scene_and_series(scene_args: &SceneArgs, method: Option<&str>) -> Result<(Scene, Series)> {
-    let mut scene = scene_args.base_scene()?;
-    if let Some(m) = method {
-        MethodSpec::parse(m)
-            .with_context(|| format!("--method {m}"))?
-            .apply(&mut scene.render);
-    }
-    scene_args.apply(&mut scene)?;
-    if scene.input.path.starts_with(voxcast::scene::BUILTIN_PREFIX) {
-        bail!("give a series: a frame folder, an FDS .smv, or a folder/glob of volumes");
-    }
-    let path = PathBuf::from(&scene.input.path);
-    let series = Series::open(&path, &scene.input.options)
-        .with_context(|| format!("opening {} as a series", path.display()))?;
-    Ok((scene, series))
-}
-
-/// Fixes the transfer function and window from frame `i`, so every frame
-/// is drawn with the same mapping.
-pub fn fix_transfer(scene: &Scene, series: &Series, i: usize) -> Result<Scene> {
-    let v = series.load(i, &scene.input.options)?;
-    let prepared = scene.prepare_with(v)?;
-    Ok(scene.resolved(&prepared))
-}
 
 #[derive(Serialize)]
 struct FrameRecord {
@@ -361,22 +245,4 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         );
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::select;
-
-    #[test]
-    fn frame_selection() {
-        assert_eq!(select(None, 1, 4).unwrap(), vec![0, 1, 2, 3]);
-        assert_eq!(select(Some("1..3"), 1, 10).unwrap(), vec![1, 2]);
-        assert_eq!(select(Some("1..=3"), 1, 10).unwrap(), vec![1, 2, 3]);
-        assert_eq!(select(Some("5.."), 2, 10).unwrap(), vec![5, 7, 9]);
-        assert_eq!(select(Some("..3"), 1, 10).unwrap(), vec![0, 1, 2]);
-        assert_eq!(select(Some("0..100"), 50, 10).unwrap(), vec![0]);
-        assert!(select(Some("20..30"), 1, 10).is_err());
-        assert!(select(Some("x..3"), 1, 10).is_err());
-        assert!(select(None, 0, 10).is_err());
-    }
 }
