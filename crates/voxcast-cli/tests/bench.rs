@@ -62,7 +62,7 @@ fn bench_json_has_every_field_for_every_method() {
         .iter()
         .map(|m| m["name"].as_str().unwrap())
         .collect();
-    let default: Vec<&str> = voxcast::bench::DEFAULT_METHODS.split(',').collect();
+    let default: Vec<&str> = voxcast_bench::DEFAULT_METHODS.split(',').collect();
     assert_eq!(names, default);
     for m in methods {
         for f in FIELDS {

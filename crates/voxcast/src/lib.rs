@@ -5,9 +5,10 @@
 //! ([`transfer`]), the camera ([`camera`]) and the method; the renderer
 //! ([`render`]) turns it into an [`Image`] and [`RenderStats`]; images are
 //! written as PNG/EXR and compared with [`metrics`].
+//!
+//! The simulators that make volumes (smoke, clouds) are the `voxcast-sim`
+//! crate; the benchmarks of the methods and their charts are `voxcast-bench`.
 
-pub mod bench;
-pub mod bench_frames;
 pub mod builtin;
 pub mod camera;
 pub mod error;
@@ -20,9 +21,7 @@ pub mod io;
 pub mod metrics;
 pub mod render;
 pub mod scene;
-pub mod sim;
 pub mod transfer;
-pub mod ttq;
 pub mod volume;
 
 #[doc(hidden)]

@@ -1,0 +1,223 @@
+//! The report as a table: Markdown (for the README) or aligned plain text,
+//! with the scene, the machine and the reference stated above it.
+
+use crate::report::{BenchReport, CacheStatus, Measured};
+
+/// `1234567` → `1,234,567`.
+fn grouped_int(n: u64) -> String {
+    let s = n.to_string();
+    // The leading group has 1 to 3 digits, every later one 3.
+    let (head, rest) = s.split_at((s.len() - 1) % 3 + 1);
+    let mut out = head.to_string();
+    for group in rest.as_bytes().chunks(3) {
+        out.push(',');
+        out.push_str(std::str::from_utf8(group).expect("ASCII digits"));
+    }
+    out
+}
+
+fn fmt_ms(ms: f64) -> String {
+    if ms >= 100.0 {
+        format!("{ms:.0}")
+    } else if ms >= 10.0 {
+        format!("{ms:.1}")
+    } else {
+        format!("{ms:.2}")
+    }
+}
+
+fn fmt_psnr(m: &Measured) -> String {
+    if m.psnr_db.is_finite() {
+        format!("{:.2}", m.psnr_db)
+    } else {
+        "∞".into()
+    }
+}
+
+const HEADER: [&str; 7] = [
+    "method",
+    "samples",
+    "interpolations",
+    "ms (median [min–max])",
+    "speed-up",
+    "PSNR dB",
+    "SSIM",
+];
+
+/// The table's cells, one row per method.
+fn rows(report: &BenchReport) -> Vec<[String; 7]> {
+    report
+        .methods
+        .iter()
+        .map(|m| match &m.measured {
+            Some(x) => [
+                m.name.clone(),
+                grouped_int(x.samples),
+                grouped_int(x.interpolations),
+                format!(
+                    "{} [{}–{}]",
+                    fmt_ms(x.ms_median),
+                    fmt_ms(x.ms_min),
+                    fmt_ms(x.ms_max)
+                ),
+                format!("{:.2}×", x.speedup_vs_uniform),
+                fmt_psnr(x),
+                format!("{:.4}", x.ssim),
+            ],
+            None => [
+                m.name.clone(),
+                format!("failed: {}", m.error.as_deref().unwrap_or("no measurement")),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+                String::new(),
+            ],
+        })
+        .collect()
+}
+
+/// The lines that say what was measured where.
+fn preamble(r: &BenchReport) -> Vec<String> {
+    let s = &r.scene;
+    let onoff = |b: bool| if b { "on" } else { "off" };
+    let ert = if s.ert >= 1.0 {
+        "off".to_string()
+    } else {
+        format!("{}", s.ert)
+    };
+    let mut machine = format!("{} rayon threads", r.machine.threads);
+    if let Some(cpu) = &r.machine.cpu {
+        machine.push_str(&format!(", {cpu}"));
+    }
+    machine.push_str(&format!(", SIMD {}", r.machine.simd));
+    let reference = &r.reference;
+    vec![
+        format!(
+            "Scene: {} ({}×{}×{} {}), {}×{} image, tf {} (window {} … {}), step {} voxel, ERT {}, shading {}, empty-space skipping {}.",
+            s.input,
+            s.dims[0],
+            s.dims[1],
+            s.dims[2],
+            s.scalar_type,
+            s.width,
+            s.height,
+            s.tf,
+            s.window[0],
+            s.window[1],
+            s.step,
+            ert,
+            onoff(s.shading),
+            onoff(s.skip_empty)
+        ),
+        format!(
+            "Machine: {machine}; median of {} timed renders after {} warm-up, voxcast {}.",
+            r.run.repeat, r.run.warmup, r.run.voxcast_version
+        ),
+        format!(
+            "Reference: uniform, step 1/{} voxel, ERT off, no empty-space skipping ({} samples, {} ms, cache {}).",
+            (1.0 / reference.step).round(),
+            grouped_int(reference.samples),
+            fmt_ms(reference.ms),
+            match reference.cache {
+                CacheStatus::Hit => "hit",
+                CacheStatus::Miss => "miss",
+                CacheStatus::Refreshed => "refreshed",
+                CacheStatus::Off => "off",
+            }
+        ),
+    ]
+}
+
+/// The report as a Markdown table (for the README), with the scene, the
+/// machine and the reference stated above it.
+pub fn markdown(report: &BenchReport) -> String {
+    let mut out = String::new();
+    for l in preamble(report) {
+        out.push_str(&l);
+        out.push_str("\n\n");
+    }
+    out.push_str(&format!("| {} |\n", HEADER.join(" | ")));
+    out.push_str("|---|---:|---:|---:|---:|---:|---:|\n");
+    for row in rows(report) {
+        let cells: Vec<String> = row.iter().map(|c| c.replace('|', "\\|")).collect();
+        out.push_str(&format!("| {} |\n", cells.join(" | ")));
+    }
+    for n in &report.notes {
+        out.push_str(&format!("\nNote: {n}\n"));
+    }
+    out
+}
+
+/// The report as an aligned plain-text table.
+pub fn text_table(report: &BenchReport) -> String {
+    let rows = rows(report);
+    let width = |i: usize| {
+        rows.iter()
+            .filter(|r| r[2].chars().count() > 0 || i == 0)
+            .map(|r| r[i].chars().count())
+            .chain([HEADER[i].chars().count()])
+            .max()
+            .unwrap_or(0)
+    };
+    let widths: Vec<usize> = (0..7).map(width).collect();
+    let line = |cells: &[String]| {
+        let mut s = String::new();
+        for (i, c) in cells.iter().enumerate() {
+            let pad = widths[i].saturating_sub(c.chars().count());
+            if i > 0 {
+                s.push_str("  ");
+            }
+            if i == 0 {
+                s.push_str(c);
+                s.push_str(&" ".repeat(pad));
+            } else {
+                s.push_str(&" ".repeat(pad));
+                s.push_str(c);
+            }
+        }
+        s.trim_end().to_string()
+    };
+    let mut out = String::new();
+    for l in preamble(report) {
+        out.push_str(&l);
+        out.push('\n');
+    }
+    out.push('\n');
+    let header: Vec<String> = HEADER.iter().map(|h| h.to_string()).collect();
+    out.push_str(&line(&header));
+    out.push('\n');
+    for row in &rows {
+        if row[2].is_empty() {
+            // A failed method: name, then the message.
+            out.push_str(&format!("{:w$}  {}\n", row[0], row[1], w = widths[0]));
+        } else {
+            out.push_str(&line(row));
+            out.push('\n');
+        }
+    }
+    for n in &report.notes {
+        out.push_str(&format!("note: {n}\n"));
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::input_label;
+
+    #[test]
+    fn labels_and_numbers() {
+        assert_eq!(input_label("builtin:demo"), "demo");
+        assert_eq!(
+            input_label("../shared/data/teapot_ct/slices"),
+            "teapot_ct/slices"
+        );
+        assert_eq!(input_label("vol.nrrd"), "vol.nrrd");
+        assert_eq!(grouped_int(0), "0");
+        assert_eq!(grouped_int(999), "999");
+        assert_eq!(grouped_int(1000), "1,000");
+        assert_eq!(grouped_int(28_901_234), "28,901,234");
+    }
+}

@@ -1,0 +1,37 @@
+//! `--device`: the one choice of `voxcast_gpu::choose`, for render, bench and
+//! view, and the GPU renderer of a prepared scene.
+
+use crate::args::DeviceArg;
+use anyhow::{Context, Result};
+use voxcast_gpu::Device;
+
+/// Resolves `--device` with `voxcast_gpu::choose` for a scene rendered with
+/// `methods` and `geometry`, and prints the reason for the choice unless
+/// `quiet`. `gpu` must find an adapter (the error names the backends and
+/// adapters tried) and render every method; `auto` takes a hardware GPU when
+/// there is one and it renders the scene, else the CPU, and says which.
+pub fn pick_device(
+    arg: DeviceArg,
+    methods: &[voxcast::render::Method],
+    geometry: Option<&voxcast::geometry::Geometry>,
+    quiet: bool,
+) -> Result<Device> {
+    let request = voxcast_gpu::DeviceRequest::from(arg);
+    let choice = voxcast_gpu::choose(request, methods, geometry)
+        .with_context(|| format!("--device {}", request.name()))?;
+    if let (Some(note), false) = (&choice.note, quiet) {
+        eprintln!("{note}");
+    }
+    Ok(choice.device)
+}
+
+/// Uploads the prepared volume to the GPU.
+pub fn gpu_renderer(
+    ctx: &std::sync::Arc<voxcast_gpu::GpuContext>,
+    prepared: &voxcast::scene::Prepared,
+) -> Result<voxcast_gpu::GpuRenderer> {
+    let r = voxcast_gpu::GpuRenderer::new(ctx.clone(), &prepared.volume, prepared.window)
+        .context("uploading the volume to the GPU")?
+        .with_geometry(prepared.geometry.as_deref())?;
+    Ok(r)
+}

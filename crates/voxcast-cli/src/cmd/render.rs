@@ -1,0 +1,125 @@
+//! `voxcast render`.
+
+use super::device::{gpu_renderer, pick_device};
+use crate::args::RenderArgs;
+use anyhow::{Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::{IsTerminal, Write};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+use voxcast::files::Outputs;
+use voxcast::scene::Scene;
+use voxcast_gpu::Device;
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    let scene = a.scene()?;
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("render.png"));
+    // Every output is checked before any work, and written only when all
+    // of them can be.
+    let mut outputs = Outputs::new([&scene.input.path]);
+    outputs.plan("-o", &out, &["png", "exr"])?;
+    if let Some(f) = &a.float_out {
+        outputs.plan("--float-out", f, &["exr"])?;
+    }
+    if let Some(f) = &a.stats_json {
+        outputs.plan("--stats-json", f, &[])?;
+    }
+    if let Some(f) = &a.save_scene {
+        outputs.plan("--save-scene", f, &["toml"])?;
+    }
+    let quiet = a.quiet;
+    let t_load = Instant::now();
+    let prepared = scene.prepare()?;
+    // The files the readers opened (a detached header's data) are inputs too.
+    outputs.check()?;
+    if !quiet {
+        eprintln!("{}", loaded(&scene, &prepared, t_load));
+    }
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("rendering {bar:40.cyan/blue} {percent:>3}% {elapsed}<{eta}")
+            .expect("valid template"),
+    );
+    let shown = AtomicBool::new(false);
+    let start = Instant::now();
+    let tty = std::io::stderr().is_terminal() && !quiet;
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        // Only renders longer than about a second get a bar.
+        if tty && start.elapsed() > Duration::from_secs(1) && !shown.swap(true, Ordering::Relaxed) {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+    };
+    let device = pick_device(
+        a.device,
+        &[scene.render.method],
+        prepared.geometry.as_deref(),
+        quiet,
+    )?;
+    let (image, stats) = match &device {
+        Device::Cpu => scene.render(&prepared, &progress)?,
+        Device::Gpu(ctx) => gpu_renderer(ctx, &prepared)?
+            .render(&prepared.tf, &scene.camera, &scene.render)
+            .context("rendering on the GPU")?,
+    };
+    bar.finish_and_clear();
+    image.write_into(&mut outputs, &out)?;
+    if let Some(f) = &a.float_out {
+        image.write_exr_into(&mut outputs, f)?;
+    }
+    if let Some(f) = &a.stats_json {
+        // The core's stats plus the device that rendered.
+        let mut value = serde_json::to_value(stats)?;
+        if let serde_json::Value::Object(m) = &mut value {
+            m.insert("device".into(), device.describe().into());
+        }
+        let json = serde_json::to_string_pretty(&value)?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
+    }
+    if let Some(f) = &a.save_scene {
+        let text = scene.resolved(&prepared).to_toml(f)?;
+        outputs.write(f, |w| w.write_all(text.as_bytes()))?;
+    }
+    outputs.commit()?;
+    if !quiet {
+        eprintln!(
+            "wrote {} ({}×{}) in {:.3} s on {}: {} rays, {} samples ({:.1} M/s), {} early-terminated",
+            out.display(),
+            image.width,
+            image.height,
+            stats.seconds,
+            device.describe(),
+            stats.rays,
+            stats.samples,
+            stats.samples_per_second() / 1e6,
+            stats.early_terminated
+        );
+    }
+    Ok(())
+}
+
+/// The line saying what was loaded.
+pub fn loaded(scene: &Scene, prepared: &voxcast::scene::Prepared, since: Instant) -> String {
+    let v = &prepared.volume;
+    let d = v.dims();
+    format!(
+        "loaded {} — {}×{}×{} {} in {:.2} s; window [{}, {}]",
+        scene.input.path,
+        d[0],
+        d[1],
+        d[2],
+        v.scalar_type(),
+        since.elapsed().as_secs_f64(),
+        prepared.window[0],
+        prepared.window[1]
+    ) + &prepared
+        .geometry
+        .as_ref()
+        .map(|g| format!("\n{}", g.describe()))
+        .unwrap_or_default()
+}
