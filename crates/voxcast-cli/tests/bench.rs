@@ -5,20 +5,16 @@
 
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod common;
+use common::{stderr, voxcast_with};
 
 fn bench(args: &[&str], cwd: &Path, cache: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .arg("bench")
-        .args(args)
-        .current_dir(cwd)
-        .env("VOXCAST_CACHE", cache)
-        .output()
-        .expect("run voxcast")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
+    let all: Vec<&str> = std::iter::once("bench")
+        .chain(args.iter().copied())
+        .collect();
+    voxcast_with(&all, cwd, &[("VOXCAST_CACHE", &cache.to_string_lossy())])
 }
 
 fn read_json(path: &Path) -> Value {

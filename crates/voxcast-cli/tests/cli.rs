@@ -2,19 +2,9 @@
 //! not written), JSON keys, reproducibility through saved scenes.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn voxcast(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run voxcast")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{stderr, voxcast};
 
 fn data(rel: &str) -> Option<String> {
     voxcast::testdata::data_path(rel).map(|p| p.to_string_lossy().into_owned())

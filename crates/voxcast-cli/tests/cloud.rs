@@ -2,20 +2,8 @@
 //! `voxcast render --time` reads, the `lod` method from the command line,
 //! and clear errors.
 
-use std::path::Path;
-use std::process::{Command, Output};
-
-fn voxcast(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run voxcast")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{stderr, voxcast};
 
 #[test]
 fn cloud_life_cycle_renders_with_lod() {

@@ -7,26 +7,17 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+mod common;
+use common::{in_ci, stderr, voxcast_with};
+
 fn voxcast(args: &[&str], cwd: &Path, no_driver: bool) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_voxcast"));
-    c.args(args).current_dir(cwd);
-    if no_driver {
-        // The Vulkan loader reads only the driver manifests named here.
-        c.env("VK_ICD_FILENAMES", "/nonexistent/no-driver.json")
-            .env("VK_DRIVER_FILES", "/nonexistent/no-driver.json")
-            .env("WGPU_BACKEND", "vulkan");
-    }
-    c.output().expect("run voxcast")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn in_ci() -> bool {
-    std::env::var("CI")
-        .map(|v| v == "true" || v == "1")
-        .unwrap_or(false)
+    // The Vulkan loader reads only the driver manifests named here.
+    let none = [
+        ("VK_ICD_FILENAMES", "/nonexistent/no-driver.json"),
+        ("VK_DRIVER_FILES", "/nonexistent/no-driver.json"),
+        ("WGPU_BACKEND", "vulkan"),
+    ];
+    voxcast_with(args, cwd, if no_driver { &none } else { &[] })
 }
 
 #[test]

@@ -2,20 +2,10 @@
 //! `--shadows`, `--light`), the FDS room with its obstructions, saved
 //! scenes that reproduce geometry renders, clean errors.
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn voxcast(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run voxcast")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{stderr, voxcast};
 
 /// Exit code 1 (a clean error, not a panic's 101) with `needles` in the message.
 fn fails_with(o: &Output, needles: &[&str]) {

@@ -4,20 +4,11 @@
 //! a file cannot drive the terminal.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
-fn voxcast(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run voxcast")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{stderr, voxcast};
 
 /// The files of `dir`, sorted.
 fn names(dir: &Path) -> Vec<String> {

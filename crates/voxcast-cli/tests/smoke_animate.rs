@@ -2,16 +2,10 @@
 //! `animate` (GIF, PNG folder, MP4 without ffmpeg) and `bench-frames` over
 //! its frame folder.
 
-use std::path::Path;
 use std::process::{Command, Output};
 
-fn voxcast(args: &[&str], cwd: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .args(args)
-        .current_dir(cwd)
-        .output()
-        .expect("run voxcast")
-}
+mod common;
+use common::voxcast;
 
 fn ok(o: &Output) {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));

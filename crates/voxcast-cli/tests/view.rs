@@ -8,9 +8,8 @@ use std::path::Path;
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-fn ci() -> bool {
-    std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
-}
+mod common;
+use common::{in_ci as ci, voxcast};
 
 /// True when `xvfb-run` can be found; otherwise skips (fails under CI).
 fn have_xvfb() -> bool {
@@ -70,14 +69,6 @@ fn view(args: &[&str], dir: &Path) -> Output {
         .env("WGPU_BACKEND", "vulkan")
         .env("XDG_RUNTIME_DIR", &runtime);
     run_with_limit(cmd, Duration::from_secs(400))
-}
-
-fn voxcast(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_voxcast"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("run voxcast")
 }
 
 /// The screenshot against `voxcast render --scene` of the saved scene.
