@@ -8,10 +8,10 @@
 use crate::{method_params, reference_params};
 use serde::Serialize;
 use voxcast::error::Result;
+use voxcast::io::Series;
 use voxcast::metrics;
 use voxcast::render::{MethodSpec, Renderer};
 use voxcast::scene::Scene;
-use voxcast::volume::Series;
 
 /// One method on one frame.
 #[derive(Clone, Debug, Serialize)]
@@ -247,7 +247,7 @@ pub fn text_table(r: &FramesReport) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use voxcast::volume::SeriesWriter;
+    use voxcast::io::SeriesWriter;
 
     /// On a small synthetic series: uniform against itself has speed-up 1,
     /// a method that renders the same image as the reference would get ∞,

@@ -9,7 +9,7 @@
 //!   [`pressure`] the MGPCG pressure solve), the input of **S0** (Liu, Lu &
 //!   Chang 2021, block-adaptive sampling for indoor smoke). [`scenes`] holds
 //!   S0's fixed room, office and corridor as presets; [`simulate_smoke`]
-//!   writes a run frame by frame as a [`voxcast::volume::Series`] folder with
+//!   writes a run frame by frame as a [`voxcast::io::Series`] folder with
 //!   the scene's solids beside it (`geometry.toml`, read by the renderer).
 //! * [`cloud`]: **S3**'s particle-system cloud (Xie, Li & Kou): puffs filled
 //!   frame by frame that grow, change slowly and dissipate from the edge, the
@@ -34,7 +34,7 @@ use std::path::Path;
 use std::time::Instant;
 use voxcast::error::{Error, Result};
 use voxcast::files::write_file;
-use voxcast::volume::SeriesWriter;
+use voxcast::io::SeriesWriter;
 
 /// The solids file a smoke folder carries beside `series.toml`.
 pub const GEOMETRY: &str = "geometry.toml";

@@ -18,10 +18,10 @@ use std::collections::VecDeque;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
+use voxcast::io::Series;
 use voxcast::render::RenderParams;
 use voxcast::scene::Scene;
 use voxcast::transfer::TransferFunction;
-use voxcast::volume::Series;
 use voxcast::Volume;
 use voxcast_gpu::Device;
 

@@ -26,8 +26,8 @@ pub use voxcast_gpu::Device;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
+use voxcast::io::Series;
 use voxcast::scene::{Scene, BUILTIN_PREFIX};
-use voxcast::volume::Series;
 
 /// Errors of the viewer.
 #[derive(Debug, thiserror::Error)]

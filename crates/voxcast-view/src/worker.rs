@@ -20,9 +20,9 @@ use std::time::Instant;
 use voxcast::camera::CameraParams;
 use voxcast::geometry::Geometry;
 use voxcast::io::OpenOptions;
+use voxcast::io::Series;
 use voxcast::render::RenderParams;
 use voxcast::transfer::TransferFunction;
-use voxcast::volume::Series;
 use voxcast::{Image, RenderStats, Volume};
 use voxcast_gpu::Device;
 

@@ -4,7 +4,7 @@
 use crate::args::CloudArgs;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use voxcast::volume::series::SeriesWriter;
+use voxcast::io::SeriesWriter;
 use voxcast_sim::cloud::{CloudOptions, CloudSim, CloudType};
 
 fn parse_grid(s: &str) -> Result<[usize; 3]> {

@@ -3,9 +3,9 @@
 use crate::args::SceneArgs;
 use anyhow::{bail, Context, Result};
 use std::path::PathBuf;
+use voxcast::io::Series;
 use voxcast::render::MethodSpec;
 use voxcast::scene::Scene;
-use voxcast::volume::Series;
 
 /// Parses `A..B`, `A..=B`, `A..`, `..B` into indices of a series of `n`.
 pub fn select(spec: Option<&str>, every: usize, n: usize) -> Result<Vec<usize>> {

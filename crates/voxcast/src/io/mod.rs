@@ -17,6 +17,7 @@ pub mod nifti;
 pub mod nrrd;
 pub mod nrrd_write;
 pub mod raw;
+pub mod series;
 mod stored;
 #[cfg(test)]
 mod test_support;
@@ -24,6 +25,8 @@ pub mod util;
 pub mod vdb;
 pub mod vtk;
 pub mod wrf;
+
+pub use series::{Series, SeriesWriter};
 
 use crate::error::{Error, Result};
 use crate::volume::{ScalarType, Volume};
@@ -99,7 +102,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     }
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
-        if crate::volume::Series::is_frame_folder(path) {
+        if crate::io::Series::is_frame_folder(path) {
             return Ok(Format::Series);
         }
         return if dicom::folder_has_dicom(path)? {
@@ -199,7 +202,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
         Format::Wrf => wrf::read(path, opts)?,
         Format::Series => {
             // One frame of the series: the nearest to `--time`, else the last.
-            let s = crate::volume::Series::open_folder(path)?;
+            let s = crate::io::Series::open_folder(path)?;
             let i = opts.time.map(|t| s.nearest(t)).unwrap_or(s.len() - 1);
             s.load(i, opts)?
         }

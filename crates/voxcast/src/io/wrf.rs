@@ -432,7 +432,7 @@ mod tests {
             return;
         };
         let opts = OpenOptions::default();
-        let s = crate::volume::Series::open(&p, &opts).unwrap();
+        let s = crate::io::Series::open(&p, &opts).unwrap();
         assert_eq!(s.len(), 4);
         assert_eq!(s.times(), vec![0.0, 1.0, 2.0, 3.0]);
         assert_eq!(s.labels, times(&p).unwrap());

@@ -3,11 +3,9 @@
 //! needs to know where it came from.
 
 mod grid;
-pub mod series;
 mod stats;
 
 pub use grid::{Grid, GridVisitor, Voxel, VoxelKind};
-pub use series::{Series, SeriesWriter};
 pub use stats::{Histogram, ValueStats};
 
 use crate::error::{Error, Result};
