@@ -124,142 +124,15 @@ fn default_tolerance() -> f64 {
 /// The preset names.
 pub const PRESETS: [&str; 3] = ["room", "office", "corridor"];
 
-const ROOM: &str = r#"
-title = "smoke: room"
-grid = [64, 64, 48]
-cell_size = 0.0625           # a 4 m × 4 m × 3 m room
-dt = 0.1
-steps_per_frame = 1
-alpha = 0.02
-beta = 0.1
-vorticity = 2.0
-cooling = 0.04
-seed = 1
+// The presets are scene files like any other, kept as data in
+// `presets/*.toml` (templates to copy for `voxcast simulate smoke --scene
+// FILE`) and built into the binary.
 
-[source]                     # a small fire on the floor near one corner
-center = [1.2, 1.4, 0.25]
-radius = 0.22
-density_rate = 5.0
-temperature = 30.0
+const ROOM: &str = include_str!("../presets/room.toml");
 
-[[obstacle]]
-name = "table"
-min = [2.0, 1.8, 0.0]
-max = [3.2, 2.8, 0.75]
-color = [0.55, 0.4, 0.25]
+const OFFICE: &str = include_str!("../presets/office.toml");
 
-[[obstacle]]
-name = "box"
-min = [0.5, 2.8, 0.0]
-max = [1.1, 3.5, 0.6]
-color = [0.6, 0.6, 0.65]
-
-[[obstacle]]
-name = "shelf"
-min = [3.5, 0.3, 0.0]
-max = [3.9, 1.5, 1.8]
-color = [0.45, 0.35, 0.3]
-"#;
-
-const OFFICE: &str = r#"
-title = "smoke: office"
-grid = [96, 64, 48]
-cell_size = 0.0625           # a 6 m × 4 m × 3 m office
-dt = 0.1
-steps_per_frame = 1
-alpha = 0.02
-beta = 0.1
-vorticity = 2.0
-cooling = 0.03
-seed = 2
-
-[source]                     # a waste-paper-basket fire by the back wall
-center = [1.0, 3.3, 0.3]
-radius = 0.25
-density_rate = 5.0
-temperature = 30.0
-
-[[obstacle]]
-name = "desk-1"
-min = [1.8, 0.6, 0.7]
-max = [3.0, 1.4, 0.78]
-color = [0.6, 0.45, 0.3]
-[[obstacle]]
-name = "desk-1-legs"
-min = [1.85, 0.65, 0.0]
-max = [2.95, 1.35, 0.7]
-color = [0.35, 0.35, 0.35]
-[[obstacle]]
-name = "desk-2"
-min = [3.6, 0.6, 0.7]
-max = [4.8, 1.4, 0.78]
-color = [0.6, 0.45, 0.3]
-[[obstacle]]
-name = "desk-2-legs"
-min = [3.65, 0.65, 0.0]
-max = [4.75, 1.35, 0.7]
-color = [0.35, 0.35, 0.35]
-[[obstacle]]
-name = "chair-1"
-min = [2.2, 1.6, 0.0]
-max = [2.7, 2.1, 0.9]
-color = [0.2, 0.25, 0.45]
-[[obstacle]]
-name = "chair-2"
-min = [4.0, 1.6, 0.0]
-max = [4.5, 2.1, 0.9]
-color = [0.2, 0.25, 0.45]
-[[obstacle]]
-name = "cabinet"
-min = [5.4, 2.4, 0.0]
-max = [5.95, 3.9, 2.0]
-color = [0.5, 0.5, 0.55]
-
-[[opening]]                  # the door, in the wall at y = 0
-name = "door"
-min = [0.4, 0.0, 0.0]
-max = [1.4, 0.07, 2.1]
-"#;
-
-const CORRIDOR: &str = r#"
-title = "smoke: corridor"
-grid = [160, 32, 40]
-cell_size = 0.075            # a 12 m × 2.4 m × 3 m corridor, open at x = 12 m
-dt = 0.1
-steps_per_frame = 1
-alpha = 0.02
-beta = 0.1
-vorticity = 2.0
-cooling = 0.02
-seed = 3
-
-[source]                     # a fire near the closed end
-center = [1.2, 1.2, 0.3]
-radius = 0.3
-density_rate = 5.0
-temperature = 35.0
-
-[[obstacle]]
-name = "bench"
-min = [4.0, 0.0, 0.0]
-max = [5.5, 0.5, 0.5]
-color = [0.5, 0.4, 0.3]
-[[obstacle]]
-name = "cabinet"
-min = [7.5, 1.8, 0.0]
-max = [8.3, 2.4, 1.6]
-color = [0.5, 0.5, 0.55]
-[[obstacle]]
-name = "pillar"
-min = [9.8, 0.0, 0.0]
-max = [10.2, 0.3, 3.0]
-color = [0.7, 0.7, 0.7]
-
-[[opening]]                  # the open end
-name = "open-end"
-min = [11.9, 0.0, 0.0]
-max = [12.0, 2.4, 3.0]
-"#;
+const CORRIDOR: &str = include_str!("../presets/corridor.toml");
 
 impl SmokeScene {
     /// A preset by name (`room`, `office`, `corridor`).
@@ -288,13 +161,13 @@ impl SmokeScene {
         let scene: SmokeScene = voxcast::files::read_toml(path)?;
         scene
             .validate()
-            .map_err(|(f, m)| Error::format(path, f, m))?;
+            .map_err(|e| Error::format(path, e.field, e.message))?;
         Ok(scene)
     }
 
     /// Checks every field; the error names the field and what was expected.
-    pub fn validate(&self) -> std::result::Result<(), (String, String)> {
-        let bad = |f: &str, m: String| Err((f.to_string(), m));
+    pub fn validate(&self) -> std::result::Result<(), voxcast::FieldError> {
+        let bad = |f: &str, m: String| Err(voxcast::FieldError::new(f, m));
         if self.grid.iter().any(|&n| !(4..=1024).contains(&n)) {
             return bad(
                 "grid",

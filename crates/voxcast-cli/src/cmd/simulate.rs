@@ -32,7 +32,7 @@ fn smoke(a: SmokeArgs) -> Result<()> {
     }
     scene
         .validate()
-        .map_err(|(f, m)| anyhow::anyhow!("scene field `{f}`: {m}"))?;
+        .map_err(|e| anyhow::anyhow!("scene field `{}`: {}", e.field, e.message))?;
     if let Some(f) = &a.save_scene {
         let text = scene.to_toml();
         voxcast::files::write_file(f, |w| {

@@ -109,9 +109,9 @@ impl Smoke {
     /// Sets up `scene`: cell flags from the obstacles and openings, the
     /// source cells, the pressure solver's levels.
     pub fn new(scene: &SmokeScene) -> Result<Smoke> {
-        scene
-            .validate()
-            .map_err(|(f, m)| voxcast::error::Error::invalid(format!("scene field `{f}`: {m}")))?;
+        scene.validate().map_err(|e| {
+            voxcast::error::Error::invalid(format!("scene field `{}`: {}", e.field, e.message))
+        })?;
         let dims = scene.grid;
         let [nx, ny, nz] = dims;
         let h = scene.cell_size;
