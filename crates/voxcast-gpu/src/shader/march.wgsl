@@ -1,5 +1,5 @@
 // Where samples go: the block DDA (render/blocks.rs BlockWalker) and the
-// marchers (render/march.rs, render/threshold.rs, render/stochastic.rs).
+// marchers (render/march/mod.rs and steps.rs, render/march/threshold.rs, render/stochastic.rs).
 
 // ------------------------------------------------------------ the block DDA
 

@@ -1,5 +1,5 @@
 // voxcast GPU ray caster: one invocation per pixel, the same computation as
-// the CPU renderer (crates/voxcast/src/render/ray.rs, march.rs,
+// the CPU renderer (crates/voxcast/src/render/ray.rs, march/,
 // stochastic.rs): same camera rays, manual trilinear reconstruction of the
 // stored values (8 texel loads, clamped like Grid::sample), the same
 // transfer-function table, opacity correction, block grid (3D DDA) for

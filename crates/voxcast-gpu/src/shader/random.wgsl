@@ -61,7 +61,7 @@ fn splitmix(z: vec2<u32>) -> vec2<u32> {
     return mix64(add64(z, vec2<u32>(0x7F4A7C15u, 0x9E3779B9u)));
 }
 
-// march.rs pixel_random: uniform in [0, 1) per seed and pixel.
+// render/march/mod.rs pixel_random: uniform in [0, 1) per seed and pixel.
 fn pixel_random(x: u32, y: u32) -> f32 {
     let key = mul64(vec2<u32>(y, x), vec2<u32>(0x7F4A7C15u, 0x9E3779B9u));
     let z = mix64(P.seed ^ key);
