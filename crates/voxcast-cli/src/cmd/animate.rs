@@ -66,9 +66,7 @@ pub fn run(a: AnimateArgs) -> Result<()> {
     } else {
         outputs.plan("-o", out, &["gif", "mp4"])?;
     }
-    if let Some(f) = &a.stats_json {
-        outputs.plan("--stats-json", f, &[])?;
-    }
+    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
     let ffmpeg = if ext == "mp4" && !as_dir {
         Some(find_ffmpeg().context(
             "ffmpeg is not on PATH: MP4 needs it (install ffmpeg, or write .gif or a folder of PNGs); nothing was written",

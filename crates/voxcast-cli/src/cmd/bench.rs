@@ -2,13 +2,12 @@
 //! with `--target-psnr`.
 
 use super::device::{gpu_renderer, pick_device};
-use super::render::loaded;
+use super::render::prepare;
 use crate::args::{BenchArgs, DeviceArg};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::{IsTerminal, Write};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::time::Instant;
 use voxcast::files::Outputs;
 use voxcast::scene::Scene;
 use voxcast::Image;
@@ -43,19 +42,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     let scene = a.scene.scene()?;
     let mut outputs = Outputs::new([&scene.input.path]);
-    if let Some(f) = &a.json {
-        outputs.plan("--json", f, &[])?;
-    }
-    if let Some(f) = &a.chart {
-        outputs.plan("--chart", f, &["png"])?;
-    }
+    outputs.plan_optional("--json", a.json.as_deref(), &[])?;
+    outputs.plan_optional("--chart", a.chart.as_deref(), &["png"])?;
     let quiet = a.quiet;
-    let t_load = Instant::now();
-    let prepared = scene.prepare()?;
-    outputs.check()?;
-    if !quiet {
-        eprintln!("{}", loaded(&scene, &prepared, t_load));
-    }
+    let prepared = prepare(&scene, &mut outputs, quiet)?;
     if let Some(target) = a.target_psnr {
         if a.device != DeviceArg::Cpu {
             bail!(

@@ -21,12 +21,8 @@ pub fn run(a: BenchFramesArgs) -> Result<()> {
     }
     let (scene, series) = scene_and_series(&a.scene, None)?;
     let mut outputs = voxcast::files::Outputs::new([&scene.input.path]);
-    if let Some(f) = &a.json {
-        outputs.plan("--json", f, &[])?;
-    }
-    if let Some(f) = &a.chart {
-        outputs.plan("--chart", f, &["png"])?;
-    }
+    outputs.plan_optional("--json", a.json.as_deref(), &[])?;
+    outputs.plan_optional("--chart", a.chart.as_deref(), &["png"])?;
     let frames = select(a.frames.as_deref(), a.every, series.len())?;
     let scene = fix_transfer(&scene, &series, *frames.last().expect("non-empty"))?;
     let bar =

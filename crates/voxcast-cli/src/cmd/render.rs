@@ -22,23 +22,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     // of them can be.
     let mut outputs = Outputs::new([&scene.input.path]);
     outputs.plan("-o", &out, &["png", "exr"])?;
-    if let Some(f) = &a.float_out {
-        outputs.plan("--float-out", f, &["exr"])?;
-    }
-    if let Some(f) = &a.stats_json {
-        outputs.plan("--stats-json", f, &[])?;
-    }
-    if let Some(f) = &a.save_scene {
-        outputs.plan("--save-scene", f, &["toml"])?;
-    }
+    outputs.plan_optional("--float-out", a.float_out.as_deref(), &["exr"])?;
+    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
+    outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
     let quiet = a.quiet;
-    let t_load = Instant::now();
-    let prepared = scene.prepare()?;
-    // The files the readers opened (a detached header's data) are inputs too.
-    outputs.check()?;
-    if !quiet {
-        eprintln!("{}", loaded(&scene, &prepared, t_load));
-    }
+    let prepared = prepare(&scene, &mut outputs, quiet)?;
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     bar.set_style(
         ProgressStyle::with_template("rendering {bar:40.cyan/blue} {percent:>3}% {elapsed}<{eta}")
@@ -103,8 +91,25 @@ pub fn run(a: RenderArgs) -> Result<()> {
     Ok(())
 }
 
+/// Loads the scene's volume (and geometry), checks the planned outputs
+/// against every file the readers opened (a detached header's data is an
+/// input too), and says what was loaded unless `quiet`.
+pub fn prepare(
+    scene: &Scene,
+    outputs: &mut Outputs,
+    quiet: bool,
+) -> Result<voxcast::scene::Prepared> {
+    let t_load = Instant::now();
+    let prepared = scene.prepare()?;
+    outputs.check()?;
+    if !quiet {
+        eprintln!("{}", loaded(scene, &prepared, t_load));
+    }
+    Ok(prepared)
+}
+
 /// The line saying what was loaded.
-pub fn loaded(scene: &Scene, prepared: &voxcast::scene::Prepared, since: Instant) -> String {
+fn loaded(scene: &Scene, prepared: &voxcast::scene::Prepared, since: Instant) -> String {
     let v = &prepared.volume;
     let d = v.dims();
     format!(

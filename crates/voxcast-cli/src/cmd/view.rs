@@ -8,15 +8,9 @@ use voxcast::files::Outputs;
 pub fn run(a: ViewArgs) -> Result<()> {
     let scene = a.scene()?;
     let mut outputs = Outputs::new([&scene.input.path]);
-    if let Some(f) = &a.screenshot {
-        outputs.plan("--screenshot", f, &["png"])?;
-    }
-    if let Some(f) = &a.save_scene {
-        outputs.plan("--save-scene", f, &["toml"])?;
-    }
-    if let Some(f) = &a.stats_json {
-        outputs.plan("--stats-json", f, &[])?;
-    }
+    outputs.plan_optional("--screenshot", a.screenshot.as_deref(), &["png"])?;
+    outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
+    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
     if let Some(s) = a.orbit {
         if !(s.is_finite() && s > 0.0 && s <= 600.0) {
             bail!("--orbit {s}: expected seconds in (0, 600]");

@@ -43,6 +43,15 @@ impl Outputs {
         }
     }
 
+    /// [`Outputs::plan`] for an output that may not be asked for (an
+    /// optional flag): nothing when `path` is `None`.
+    pub fn plan_optional(&mut self, what: &str, path: Option<&Path>, exts: &[&str]) -> Result<()> {
+        match path {
+            Some(p) => self.plan(what, p, exts),
+            None => Ok(()),
+        }
+    }
+
     /// Plans an output: `what` names it in errors (e.g. `--stats-json`);
     /// `exts` are the allowed extensions (any when empty). Refuses it now if
     /// it could not be written safely (see [`check_path`]) or if another
