@@ -307,7 +307,7 @@ fn bad_input_fails_cleanly_and_writes_nothing() {
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
             vec!["builtin:sphere", "--methods", "uniform,warp"],
-            "known: uniform, adaptive, adaptive-max, threshold",
+            "known: uniform, adaptive, adaptive-s0, adaptive-max, threshold",
         ),
         (vec!["builtin:sphere", "--methods", "uniform,warp"], "warp"),
         (

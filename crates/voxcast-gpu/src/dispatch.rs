@@ -88,6 +88,27 @@ impl GpuRenderer {
             queue.write_buffer(&blocks.empty, 0, bytemuck::cast_slice(&flags));
             blocks.tf = Some(tf.clone());
         }
+        // The adaptive methods' `k` per block, as the CPU's `Job` has it.
+        let k_tf = (params.method == Method::Adaptive).then(|| (tf.clone(), params.shading));
+        if matches!(params.method, Method::Adaptive | Method::AdaptiveMax) && blocks.k_tf != k_tf {
+            if k_tf.is_some() {
+                let empty = blocks.grid.empty_flags(tf);
+                let k = blocks.grid.classified_change(
+                    &Lut::new(tf, params.step),
+                    &blocks.max_gradient,
+                    &empty,
+                    params.shade_weight(),
+                );
+                queue.write_buffer(&blocks.max_grad, 0, bytemuck::cast_slice(&k));
+            } else {
+                queue.write_buffer(
+                    &blocks.max_grad,
+                    0,
+                    bytemuck::cast_slice(&blocks.max_gradient),
+                );
+            }
+            blocks.k_tf = k_tf;
+        }
         let counts = blocks.grid.counts;
         let block_size = blocks.grid.size;
 
@@ -112,12 +133,11 @@ impl GpuRenderer {
         let unit = self.volume.spacing().min_element();
         let inv = glam::Vec3::ONE / self.volume.spacing();
         let origin = self.volume.origin();
-        let (level_lo, level_hi) =
-            if matches!(params.method, Method::Adaptive | Method::AdaptiveMax) {
-                params.adaptive.levels(params.step)
-            } else {
-                (0, 0)
-            };
+        let (level_lo, level_hi) = if params.has_levels() {
+            params.adaptive.levels(params.step)
+        } else {
+            (0, 0)
+        };
         let jitter = params.jitter || params.method == Method::Jitter;
         let passes = if params.method.is_stochastic() || params.jitter {
             params.spp
@@ -167,7 +187,7 @@ impl GpuRenderer {
             box_lo: box_lo.to_array(),
             ert,
             box_hi: box_hi.to_array(),
-            k_ref: params.adaptive.k_ref,
+            k_ref: params.adaptive_k_ref(),
             dims: dims.map(|d| d as u32),
             block_size: block_size as u32,
             block_counts: counts.map(|c| c as u32),

@@ -45,7 +45,7 @@
 //!
 //! # Supported
 //!
-//! Methods `uniform`, `adaptive`, `adaptive-max`, `threshold` (each with
+//! Methods `uniform`, `adaptive`, `adaptive-s0`, `adaptive-max`, `threshold` (each with
 //! `+grouped` and `+noskip`), `jitter`, `stratified`, `mc` (progressive over
 //! `spp`, in dispatches of at most eight passes), the
 //! three optical models, shading, both compositing orders (back to front is

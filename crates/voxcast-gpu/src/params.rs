@@ -367,7 +367,7 @@ mod tests {
         assert!(p.contains("struct Params {\n"));
         assert!(p.contains("    eye: vec3<f32>, // bytes 0..12\n"));
         assert!(p.contains("    seed: vec2<u32>, // bytes 224..232\n"));
-        assert!(p.contains("const M_SINGLE_SCATTER: u32 = 8u;"));
+        assert!(p.contains("const M_SINGLE_SCATTER: u32 = 9u;"));
         assert!(p.contains("const F_SKIP: u32 = 8u;"));
     }
 }

@@ -62,10 +62,18 @@ pub(crate) struct Blocks {
     pub(crate) grid: BlockGrid,
     /// Emptiness flags under the transfer function last uploaded.
     pub(crate) empty: wgpu::Buffer,
-    /// Largest gradient component per block (for `adaptive-max`).
+    /// The adaptive methods' `k` per block: the largest gradient component
+    /// (`adaptive-max`) or the change of the classified signal (`adaptive`,
+    /// for the transfer function in `k_tf`).
     pub(crate) max_grad: wgpu::Buffer,
+    /// Largest gradient component per block, on the CPU (what `max_grad`
+    /// holds for `adaptive-max`, and the classified change's input).
+    pub(crate) max_gradient: Vec<f32>,
     /// The transfer function the flags were computed for.
     pub(crate) tf: Option<TransferFunction>,
+    /// What `max_grad` holds: `None` the largest gradients, `Some((tf,
+    /// shading))` the classified change under `tf`, shaded or not.
+    pub(crate) k_tf: Option<(TransferFunction, bool)>,
 }
 
 /// What changes between renders, kept behind a lock so [`GpuRenderer::render`]
@@ -403,15 +411,17 @@ impl GpuRenderer {
                 mapped_at_creation: false,
             });
             let max_grad = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("max gradient"),
+                label: Some("block k"),
                 contents: bytemuck::cast_slice(&maxg),
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             });
             Blocks {
                 grid,
                 empty,
                 max_grad,
+                max_gradient: maxg,
                 tf: None,
+                k_tf: None,
             }
         })
     }

@@ -30,8 +30,8 @@ pub struct AnimateArgs {
     /// Output: FILE.gif, FILE.mp4 (needs ffmpeg) or a folder DIR/ for PNGs.
     #[arg(short, long, value_name = "OUT")]
     pub output: PathBuf,
-    /// Sampling method (as for render: uniform, adaptive, adaptive-max,
-    /// threshold; +grouped, +noskip).
+    /// Sampling method (as for render: uniform, adaptive, adaptive-s0,
+    /// adaptive-max, threshold; +grouped, +noskip).
     #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
     pub method: Option<String>,
     /// Frames per second of the GIF/MP4.

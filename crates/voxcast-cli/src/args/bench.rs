@@ -27,8 +27,8 @@ pub const DEFAULT_METHODS: &str = voxcast_bench::DEFAULT_METHODS;
 pub struct BenchArgs {
     #[command(flatten)]
     pub scene: SceneArgs,
-    /// Methods to compare, comma-separated: uniform, adaptive, adaptive-max,
-    /// threshold, jitter, stratified, mc, importance, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
+    /// Methods to compare, comma-separated: uniform, adaptive, adaptive-s0,
+    /// adaptive-max, threshold, jitter, stratified, mc, importance, each optionally +grouped and/or +noskip (empty-space skipping off). uniform (the baseline of the
     /// speed-ups) is added when missing.
     #[arg(long, value_name = "LIST", default_value = DEFAULT_METHODS)]
     pub methods: String,

@@ -40,9 +40,13 @@ pub struct RenderArgs {
     /// No messages on stderr.
     #[arg(short, long)]
     pub quiet: bool,
-    /// Sampling method along rays: uniform (equal steps), adaptive (S0: a step
-    /// per block from the derivative at its midpoint and the distance),
-    /// adaptive-max (the same from the block's largest derivative) or
+    /// Sampling method along rays: uniform (equal steps), adaptive (S0's
+    /// block-adaptive steps from what the transfer function shows: a step per
+    /// block that keeps the change of classified opacity and colour per
+    /// sample under [render.adaptive] tolerance, 0.15 by default),
+    /// adaptive-s0 (S0 exactly: the step from the raw derivative at the
+    /// block's midpoint and the distance), adaptive-max (S0's formula from the
+    /// block's largest derivative) or
     /// threshold (Zeng 2018: the step follows the value's range); the
     /// Monte-Carlo marchers of S1 (use with --spp N): jitter (one random
     /// offset per ray), stratified (one random position per step), mc

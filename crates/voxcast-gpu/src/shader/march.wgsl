@@ -96,15 +96,27 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
         let tb = st.tb;
         let is_empty = empty[st.index] != 0u;
         var j = 0;
-        if method == M_ADAPTIVE || method == M_ADAPTIVE_MAX {
+        // steps.rs `Classified`: the cap of grouped reuse in this block.
+        var cap = 3u;
+        if method == M_ADAPTIVE || method == M_ADAPTIVE_S0 || method == M_ADAPTIVE_MAX {
             if is_empty {
                 j = P.level_hi;
-            } else if method == M_ADAPTIVE {
+            } else if method == M_ADAPTIVE_S0 {
                 let tm = 0.5 * (ta + tb);
                 let g = gradient(o + d * tm);
                 n_interp += 6u;
                 let k = max(max(abs(g.x), abs(g.y)), abs(g.z));
                 j = level(k, t_out, tm);
+            } else if method == M_ADAPTIVE {
+                let k = max_grad[st.index];
+                if k <= 0.0 {
+                    j = P.level_hi;
+                } else {
+                    let tm = 0.5 * (ta + tb);
+                    let x = P.k_ref / (k * t_out / max(tm, 1e-6));
+                    j = clamp(i32(round_away(log2(x))), P.level_lo, P.level_hi);
+                    cap = u32(clamp(floor(x / exp2(f32(j))), 1.0, 3.0));
+                }
             } else {
                 j = level(max_grad[st.index], t_out, 0.5 * (ta + tb));
             }
@@ -134,7 +146,7 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
         for (var k = k0; k < k1; k += 1u) {
             let t = t0 + f32(k) * s;
             n_samples += 1u;
-            let head = !grouped || k == k0 || (k % group_size(t, t_out)) == 0u;
+            let head = !grouped || k == k0 || (k % min(group_size(t, t_out), cap)) == 0u;
             if head {
                 last = evaluate(o + d * t);
             }

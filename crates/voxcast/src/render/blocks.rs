@@ -76,6 +76,123 @@ impl BlockGrid {
     }
 }
 
+/// The change of `n·l` per voxel that [`BlockGrid::classified_change`]
+/// allows for with shading: a normal turning by about 15° per voxel
+/// (sin 15° ≈ 0.26). Calibrated on the shaded smoke of the office and FDS
+/// scenes (docs/methods.md): a full turn per voxel kept 49–52 dB but
+/// refined every dense block.
+const TURN: f32 = 0.25;
+
+/// Range maxima of a table in O(1) per query (a sparse table: level `l`
+/// holds the maximum of every run of `2^l` entries).
+struct RangeMax {
+    levels: Vec<Vec<f32>>,
+}
+
+impl RangeMax {
+    fn new(v: Vec<f32>) -> RangeMax {
+        let mut levels = vec![v];
+        let mut w = 1;
+        while 2 * w <= levels[0].len() {
+            let prev = levels.last().expect("level 0 exists");
+            let next = (0..prev.len() - w)
+                .map(|i| prev[i].max(prev[i + w]))
+                .collect();
+            levels.push(next);
+            w *= 2;
+        }
+        RangeMax { levels }
+    }
+
+    /// The largest entry of `a..=b` (`a ≤ b`).
+    fn max(&self, a: usize, b: usize) -> f32 {
+        let l = (b - a + 1).ilog2() as usize;
+        let t = &self.levels[l];
+        t[a].max(t[b + 1 - (1 << l)])
+    }
+}
+
+/// What the eye sees of a table entry: the opacity of one unit length,
+/// `α = 1 − e^(−σ)`, and the linear colour premultiplied by it.
+fn classified(lut: &Lut, i: usize) -> [f32; 4] {
+    let e = lut.entry(i);
+    let a = 1.0 - (-lut.sigma(i)).exp();
+    [e[0] * a, e[1] * a, e[2] * a, a]
+}
+
+impl BlockGrid {
+    /// Per block, a bound on how much the *classified* signal — the
+    /// opacity of one unit length and the colour premultiplied by it, the
+    /// largest change of any of the four — changes per voxel step inside
+    /// the block: the block's largest partial derivative of the normalised
+    /// field (`max_gradient`, [`BuildMaxGradient`]) times the steepest slope
+    /// of the classified table over the block's value range, and never more
+    /// than the table's total variation over that range (a sharp but low
+    /// step of the transfer function costs no more than its height). Empty
+    /// blocks get 0, and so does a block whose values the transfer function
+    /// maps to one colour and opacity — whatever their gradient. `adaptive`
+    /// takes its `k` from this: O(blocks) per render, after an O(table)
+    /// set-up, so it is recomputed whenever the transfer function changes,
+    /// like [`BlockGrid::empty_flags`].
+    ///
+    /// With shading (`shade` > 0: the diffuse and specular weights, the
+    /// share of a sample's colour the normal decides), the colour also
+    /// changes as the normal turns, which the transfer function does not
+    /// show: the bound is raised to `shade × ` [`TURN`] `×` the block's
+    /// largest opacity. Thin haze keeps
+    /// its long steps; a block dense enough to show a lit surface gets the
+    /// fine ones, where rays terminate within a few samples anyway.
+    pub fn classified_change(
+        &self,
+        lut: &Lut,
+        max_gradient: &[f32],
+        empty: &[bool],
+        shade: f32,
+    ) -> Vec<f32> {
+        let n = LUT_SIZE;
+        let q: Vec<[f32; 4]> = (0..n).map(|i| classified(lut, i)).collect();
+        // Largest channel change from entry i to i + 1, and its prefix sums
+        // (the total variation along the table).
+        let slope: Vec<f32> = q
+            .windows(2)
+            .map(|w| {
+                (0..4)
+                    .map(|c| (w[1][c] - w[0][c]).abs())
+                    .fold(0.0, f32::max)
+            })
+            .collect();
+        let mut tv = Vec::with_capacity(n);
+        tv.push(0.0f64);
+        for s in &slope {
+            tv.push(tv.last().expect("pushed") + *s as f64);
+        }
+        let steepest = RangeMax::new(slope);
+        let densest = RangeMax::new(q.iter().map(|e| e[3]).collect());
+        // From "below the table" (nothing) to entry 0.
+        let from_none = q[0].iter().fold(0.0f32, |m, &x| m.max(x));
+        self.range
+            .iter()
+            .zip(max_gradient)
+            .zip(empty)
+            .map(|((&[lo, hi], &k), &e)| {
+                if e || hi.is_nan() {
+                    return 0.0;
+                }
+                let (Some(a), Some(b)) = (Lut::index(lo.max(0.0)), Lut::index(hi)) else {
+                    return 0.0;
+                };
+                let jump = if lo < 0.0 { from_none } else { 0.0 };
+                let lit = shade * TURN * densest.max(a, b);
+                if b <= a {
+                    return jump.max(lit);
+                }
+                let per_voxel = k * steepest.max(a, b - 1) * (n - 1) as f32;
+                (per_voxel.min((tv[b] - tv[a]) as f32) + jump).max(lit)
+            })
+            .collect()
+    }
+}
+
 /// Number of blocks per axis for `dims` voxels (blocks cover the
 /// `dims − 1` cells; a one-voxel axis has one block).
 pub(super) fn block_counts(dims: [usize; 3], b: usize) -> [usize; 3] {
@@ -230,6 +347,82 @@ impl GridVisitor for BuildMaxGradient {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::render::march::classified_level;
+
+    /// Three 8³ blocks along x: the first a steep ramp over values the
+    /// transfer function maps to one opacity and colour, the second a
+    /// steep fall joining it to the third, a gentle ramp across the
+    /// transfer function's sharp edge at 0.3.
+    fn edge_scene() -> (BlockGrid, Vec<f32>, Lut, Vec<bool>) {
+        let vol = Volume::from_fn([25, 9, 9], Vec3::ONE, |i, _, _| {
+            let x = i as f32 / 8.0;
+            if i <= 8 {
+                0.5 + 0.5 * x
+            } else if i <= 16 {
+                1.0 - 0.75 * (x - 1.0)
+            } else {
+                0.25 + 0.1 * (x - 2.0)
+            }
+        })
+        .unwrap();
+        let tf = TransferFunction {
+            color: vec![[0.0, 1.0, 0.8, 0.6]],
+            opacity: vec![[0.0, 0.0], [0.29, 0.0], [0.31, 0.5], [1.0, 0.5]],
+            window: None,
+        };
+        let grid = vol.visit(0.0, 1.0, BuildBlocks { size: 8 });
+        let maxg = vol.visit(0.0, 1.0, BuildMaxGradient { size: 8 });
+        let empty = grid.empty_flags(&tf);
+        (grid, maxg, Lut::new(&tf, 0.5), empty)
+    }
+
+    #[test]
+    fn classified_change_follows_what_the_transfer_function_shows() {
+        let (grid, maxg, lut, empty) = edge_scene();
+        assert_eq!(grid.counts, [3, 1, 1]);
+        // The raw field is steeper in the first block than in the third.
+        assert!(maxg[0] > maxg[2], "{maxg:?}");
+        let k = grid.classified_change(&lut, &maxg, &empty, 0.0);
+        // One opacity and colour over the first block's values: no change,
+        // whatever the gradient.
+        assert_eq!(k[0], 0.0, "{k:?}");
+        // Across the edge: bounded by the edge's height (α 0 → 0.5)...
+        assert!(k[2] > 0.1 && k[2] <= 0.5 + 1e-4, "{k:?}");
+        // ... and by gradient × the edge's slope (25 per unit value).
+        assert!(k[2] <= maxg[2] * 25.0 * 1.05, "{k:?} {maxg:?}");
+        // An empty block has none.
+        let all_empty = vec![true; 3];
+        assert_eq!(
+            grid.classified_change(&lut, &maxg, &all_empty, 1.0),
+            [0.0, 0.0, 0.0]
+        );
+        // Shaded, the flat block's lit surface counts: its opacity (0.5).
+        let lit = grid.classified_change(&lut, &maxg, &empty, 1.0);
+        assert!(
+            (lit[0] - 0.5 * TURN).abs() < 1e-3 && lit[2] >= k[2],
+            "{lit:?}"
+        );
+    }
+
+    #[test]
+    fn a_flat_block_gets_the_coarsest_level_and_an_edge_the_finest() {
+        let (grid, maxg, lut, empty) = edge_scene();
+        let k = grid.classified_change(&lut, &maxg, &empty, 0.0);
+        let p = crate::render::RenderParams::default();
+        let levels = p.adaptive.levels(p.step);
+        let k_ref = p.adaptive.tolerance / p.step;
+        assert_eq!(
+            classified_level(k[0], k_ref, 1.5, levels),
+            (levels.1, u32::MAX)
+        );
+        let (j, cap) = classified_level(k[2], k_ref, 1.5, levels);
+        assert_eq!((j, cap), (levels.0, 1), "k {}", k[2]);
+        // A block with a tenth of the tolerance's change per base step gets
+        // a coarser step and may group (step 2^j, groups of ⌊x/2^j⌋).
+        let (j, cap) = classified_level(0.1 * k_ref, k_ref, 1.0, levels);
+        assert_eq!((j, cap), (levels.1, 2));
+    }
     use crate::volume::Volume;
     use glam::Vec3;
 

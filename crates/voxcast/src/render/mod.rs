@@ -40,7 +40,7 @@ use crate::volume::{Grid, GridVisitor, Volume, Voxel};
 use composite::{BackToFront, FrontToBack, Weights};
 use glam::Vec3;
 pub use march::{AdaptiveParams, ThresholdParams};
-use march::{BlockMax, Fixed, Midpoint, Steps, Threshold};
+use march::{BlockMax, Classified, Fixed, Midpoint, Steps, Threshold};
 use ray::{Frame, Marcher, Sampler};
 use sample::{Flat, Grouped, Phong, Shade, Trilinear};
 use shading::BlinnPhong;
@@ -225,18 +225,29 @@ impl<'v> Renderer<'v> {
         let cam = Camera::fit(camera, lo, hi, params.width, params.height);
         let unit = volume.spacing().min_element();
         let derived = self.derived(params.block_size as usize);
-        let max_gradient: &[f32] = if params.method == Method::AdaptiveMax {
-            derived.max_gradient.get_or_init(|| {
-                volume.visit(
-                    self.window[0],
-                    self.window[1],
-                    blocks::BuildMaxGradient {
-                        size: derived.blocks.size,
-                    },
-                )
-            })
-        } else {
-            &[]
+        let max_gradient: &[f32] =
+            if matches!(params.method, Method::AdaptiveMax | Method::Adaptive) {
+                derived.max_gradient.get_or_init(|| {
+                    volume.visit(
+                        self.window[0],
+                        self.window[1],
+                        blocks::BuildMaxGradient {
+                            size: derived.blocks.size,
+                        },
+                    )
+                })
+            } else {
+                &[]
+            };
+        let empty = derived.blocks.empty_flags(tf);
+        let lut = Lut::new(tf, params.step);
+        // Each adaptive method's `k` per block.
+        let block_k: std::borrow::Cow<'_, [f32]> = match params.method {
+            Method::Adaptive => derived
+                .blocks
+                .classified_change(&lut, max_gradient, &empty, params.shade_weight())
+                .into(),
+            _ => max_gradient.into(),
         };
         if params.method.is_physical() {
             // The path tracer's medium has no surfaces yet: refuse rather
@@ -280,15 +291,15 @@ impl<'v> Renderer<'v> {
             z_pairs: &self.z_pairs,
             pdf: pdf.as_slice(),
             volume,
-            lut: Lut::new(tf, params.step),
+            lut,
             cam,
             params,
             unit,
             progress,
             cancel,
             blocks: &derived.blocks,
-            empty: derived.blocks.empty_flags(tf),
-            max_gradient,
+            empty,
+            block_k,
             surface: self.geometry.as_deref().map(|g| surface::SurfaceCtx {
                 geometry: g,
                 light: crate::geometry::SurfaceLight::new(g.light, &cam),
@@ -319,7 +330,10 @@ struct Job<'a> {
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     empty: Vec<bool>,
-    max_gradient: &'a [f32],
+    /// The adaptive methods' `k` per block: the largest derivative
+    /// (`adaptive-max`) or the change of the classified signal
+    /// (`adaptive`); empty for the others.
+    block_k: std::borrow::Cow<'a, [f32]>,
     tree: Option<&'a octree::Octree>,
     lut: Lut,
     cam: Camera,
@@ -408,9 +422,10 @@ impl Job<'_> {
         sh: Sh,
     ) -> Option<(Image, RenderStats)> {
         let p = self.params;
-        let (level_lo, level_hi) = match p.method {
-            Method::Adaptive | Method::AdaptiveMax => p.adaptive.levels(p.step),
-            _ => (0, 0),
+        let (level_lo, level_hi) = if p.has_levels() {
+            p.adaptive.levels(p.step)
+        } else {
+            (0, 0)
         };
         let levels: Vec<f32> = (level_lo..=level_hi)
             .map(|j| p.step * 2f32.powi(j))
@@ -421,15 +436,18 @@ impl Job<'_> {
             level_steps: levels.iter().map(|s| s * self.unit).collect(),
             level_tables: levels.iter().map(|&r| self.lut.premultiplied(r)).collect(),
         };
-        let k = p.adaptive.k_ref;
+        let k = p.adaptive_k_ref();
         match p.method {
             Method::Uniform | Method::Jitter => match self.packets(f, &t) {
                 Some(out) => out,
                 None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
             },
-            Method::Adaptive => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Midpoint, k)),
+            Method::Adaptive => {
+                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Classified(&self.block_k), k))
+            }
+            Method::AdaptiveS0 => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Midpoint, k)),
             Method::AdaptiveMax => {
-                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(BlockMax(self.max_gradient), k))
+                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(BlockMax(&self.block_k), k))
             }
             Method::Threshold => {
                 let alphas: Vec<_> = p

@@ -15,9 +15,19 @@ pub enum Method {
     /// Equal steps of `step` voxels (S4).
     #[default]
     Uniform,
-    /// S0: a step per block from the frequency `F = k·|MN|/|MS|`, with `k`
-    /// the largest partial derivative at the block's midpoint.
+    /// S0's block-adaptive steps driven by what the eye sees (the default
+    /// adaptive method): per block, `k` is a bound on the change of the
+    /// *classified* signal (opacity and premultiplied colour of a voxel's
+    /// length) per voxel step, so a steep gradient the transfer function
+    /// hides costs nothing and a gentle one across a sharp edge gets the
+    /// finest step; the step keeps that change below
+    /// [`AdaptiveParams::tolerance`], and grouped reuse (`+grouped`) is
+    /// capped where it would exceed it.
     Adaptive,
+    /// S0 exactly (eqs. 1–6): a step per block from the frequency
+    /// `F = k·|MN|/|MS|`, with `k` the largest partial derivative of the raw
+    /// field at the block's midpoint.
+    AdaptiveS0,
     /// S0's frequency with `k` the block's largest gradient magnitude instead
     /// of the midpoint's (the midpoint can miss a thin feature).
     AdaptiveMax,
@@ -48,9 +58,10 @@ pub enum Method {
 }
 
 impl Method {
-    pub const ALL: [Method; 11] = [
+    pub const ALL: [Method; 12] = [
         Method::Uniform,
         Method::Adaptive,
+        Method::AdaptiveS0,
         Method::AdaptiveMax,
         Method::Threshold,
         Method::Jitter,
@@ -91,6 +102,7 @@ impl Method {
         match self {
             Method::Uniform => "uniform",
             Method::Adaptive => "adaptive",
+            Method::AdaptiveS0 => "adaptive-s0",
             Method::AdaptiveMax => "adaptive-max",
             Method::Threshold => "threshold",
             Method::Jitter => "jitter",
@@ -374,7 +386,39 @@ impl RenderParams {
         }
     }
 
-    /// Checks the numbers a user may get wrong.
+    /// The reference frequency of the adaptive levels for this render's
+    /// method: S0's `k_ref` (`adaptive-s0`, `adaptive-max`), or for the
+    /// classified `adaptive` the tolerance per base step — the step
+    /// `step · k_ref / F` is then `tolerance / k` voxels, the step at which
+    /// the classified signal changes by `tolerance`. Both back ends take
+    /// their levels from this one number.
+    pub fn adaptive_k_ref(&self) -> f32 {
+        match self.method {
+            Method::Adaptive => self.adaptive.tolerance / self.step,
+            _ => self.adaptive.k_ref,
+        }
+    }
+
+    /// The share of a sample's colour that the normal decides under this
+    /// render's shading (diffuse + specular weights; 0 unshaded), for the
+    /// classified `adaptive`'s bound.
+    pub fn shade_weight(&self) -> f32 {
+        if self.shading {
+            let bp = super::shading::BlinnPhong::default();
+            bp.diffuse + bp.specular
+        } else {
+            0.0
+        }
+    }
+
+    /// Whether the method picks a step per block (S0's levels).
+    pub fn has_levels(&self) -> bool {
+        matches!(
+            self.method,
+            Method::Adaptive | Method::AdaptiveS0 | Method::AdaptiveMax
+        )
+    }
+
     /// [`RenderParams::validate`], and what depends on the volume: the
     /// physical methods' optical depth.
     pub fn validate_for(&self, volume: &Volume) -> Result<()> {
@@ -456,6 +500,15 @@ impl RenderParams {
                 "k_ref must be positive and min/max steps 0.001…64 voxels".into(),
             );
         }
+        if !(a.tolerance.is_finite() && (1e-5..=1.0).contains(&a.tolerance)) {
+            return bad(
+                "adaptive.tolerance",
+                format!(
+                    "{}: must be in 0.00001…1 (the change of classified opacity allowed per sample)",
+                    a.tolerance
+                ),
+            );
+        }
         self.lod.validate().map_err(|e| e.within("render"))?;
         if self.background.iter().any(|c| !(0.0..=1.0).contains(c)) {
             return bad(
@@ -491,7 +544,7 @@ mod tests {
         assert!(Backend::Gpu.renders(Method::SingleScatter));
         assert_eq!(
             Backend::Gpu.method_list(),
-            "uniform, adaptive, adaptive-max, threshold, jitter, stratified, mc and single-scatter"
+            "uniform, adaptive, adaptive-s0, adaptive-max, threshold, jitter, stratified, mc and single-scatter"
         );
         assert!(Backend::Gpu.renders_geometry(None));
     }

@@ -142,6 +142,10 @@ pub(super) trait Sampler<T: Voxel>: Copy + Sync {
     fn begin(&mut self, t_out: f32);
     /// The next sample starts a new group (after a skip).
     fn restart(&mut self);
+    /// Caps the group of the samples that follow (until the next
+    /// `restart`) at `cap` samples; only grouped reuse has groups.
+    #[inline(always)]
+    fn limit(&mut self, _cap: u32) {}
     /// The sample at voxel position `p`, the `k`-th of its march (`t` in
     /// world units).
     fn at(

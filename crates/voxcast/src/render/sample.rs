@@ -184,6 +184,8 @@ pub(super) struct Grouped<Sh> {
     shade: Sh,
     t_out: f32,
     fresh: bool,
+    /// The marcher's cap on the group ([`Sampler::limit`]).
+    cap: u32,
     last: Sample,
     last_premul: Option<(Vec3, f32, usize)>,
 }
@@ -194,6 +196,7 @@ impl<Sh> Grouped<Sh> {
             shade,
             t_out: 0.0,
             fresh: true,
+            cap: u32::MAX,
             last: Sample {
                 value: 0.0,
                 hit: None,
@@ -209,10 +212,15 @@ impl<T: Voxel, Sh: Shade> Sampler<T> for Grouped<Sh> {
     fn begin(&mut self, t_out: f32) {
         self.t_out = t_out;
         self.fresh = true;
+        self.cap = u32::MAX;
     }
     #[inline(always)]
     fn restart(&mut self) {
         self.fresh = true;
+    }
+    #[inline(always)]
+    fn limit(&mut self, cap: u32) {
+        self.cap = cap;
     }
     #[inline(always)]
     fn at(
@@ -224,7 +232,7 @@ impl<T: Voxel, Sh: Shade> Sampler<T> for Grouped<Sh> {
         view: Vec3,
         n: &mut Counters,
     ) -> Sample {
-        if self.fresh || k.is_multiple_of(group_size(t, self.t_out)) {
+        if self.fresh || k.is_multiple_of(group_size(t, self.t_out).min(self.cap)) {
             self.fresh = false;
             self.last = evaluate(f, &self.shade, p, view, n);
         }
@@ -239,7 +247,7 @@ impl<T: Voxel, Sh: Shade> Sampler<T> for Grouped<Sh> {
         (t, k, view): (f32, u32, Vec3),
         n: &mut Counters,
     ) -> Option<(Vec3, f32, usize)> {
-        if self.fresh || k.is_multiple_of(group_size(t, self.t_out)) {
+        if self.fresh || k.is_multiple_of(group_size(t, self.t_out).min(self.cap)) {
             self.fresh = false;
             self.last_premul = evaluate_premul(f, &self.shade, q, p, view, n);
         }

@@ -15,7 +15,9 @@
 mod steps;
 mod threshold;
 
-pub(super) use steps::{BlockMax, Fixed, Midpoint, Steps};
+#[cfg(test)]
+pub(super) use steps::classified_level;
+pub(super) use steps::{BlockMax, Classified, Fixed, Midpoint, Steps};
 pub(super) use threshold::Threshold;
 
 use glam::Vec3;
@@ -154,19 +156,28 @@ impl Iterator for BlockWalker {
 
 /// Parameters of the S0 adaptive marchers.
 ///
-/// Per block crossed, the frequency is `F = k·|MN|/|MS|` (S0 eqs. 1–6): `k`
-/// the largest partial derivative of the normalised field per voxel (at the
-/// block's midpoint `S`, or the block's maximum for `adaptive-max`), `M` the
-/// eye, `N` the ray's exit. The step is `step · k_ref / F`, rounded to a
-/// power-of-two multiple of `step` and clamped to `[min_step, max_step]`
-/// (voxels; rounded to powers of two times `step` too). Blocks that the
-/// transfer function makes transparent take `max_step`.
+/// Per block crossed, the frequency is `F = k·|MN|/|MS|` (S0 eqs. 1–6), `M`
+/// the eye, `N` the ray's exit, `S` the block's midpoint. For `adaptive-s0`
+/// `k` is the largest partial derivative of the normalised field per voxel
+/// at `S`, for `adaptive-max` the block's largest, and the step is
+/// `step · k_ref / F`. For `adaptive` `k` bounds the change of the
+/// classified signal per voxel in the block (see
+/// [`crate::render::blocks::BlockGrid::classified_change`]) and the step is
+/// `tolerance / F` voxels. Steps are rounded to a power-of-two multiple of
+/// `step` and clamped to `[min_step, max_step]` (voxels; rounded to powers
+/// of two times `step` too). Blocks that the transfer function makes
+/// transparent take `max_step`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 #[serde(default)]
 pub struct AdaptiveParams {
-    /// The `k·|MN|/|MS|` at which the base step is used.
+    /// The `k·|MN|/|MS|` at which the base step is used (`adaptive-s0`,
+    /// `adaptive-max`).
     pub k_ref: f32,
+    /// `adaptive`: the largest change of the classified signal (opacity of
+    /// one voxel's length, and colour premultiplied by it) allowed from one
+    /// sample to the next; smaller is finer and slower.
+    pub tolerance: f32,
     /// Finest step in voxels (default: the base step).
     pub min_step: Option<f32>,
     /// Coarsest step in voxels (default: 4 × the base step).
@@ -177,11 +188,15 @@ impl Default for AdaptiveParams {
     fn default() -> Self {
         AdaptiveParams {
             k_ref: 0.1,
+            tolerance: DEFAULT_TOLERANCE,
             min_step: None,
             max_step: None,
         }
     }
 }
+
+/// The default [`AdaptiveParams::tolerance`].
+pub const DEFAULT_TOLERANCE: f32 = 0.15;
 
 impl AdaptiveParams {
     /// The range of power-of-two levels `j` (step = base · 2^j) allowed.

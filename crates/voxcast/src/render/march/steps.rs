@@ -1,6 +1,8 @@
 //! Marchers with a step per block: `uniform` and `jitter` (one step
-//! everywhere), S0's `adaptive` (the step from the derivative at the block's
-//! midpoint) and `adaptive-max` (from the block's largest derivative).
+//! everywhere), `adaptive` (the step from the block's bound on the change
+//! of the classified signal, with grouped reuse capped by it), S0's
+//! `adaptive-s0` (the step from the derivative at the block's midpoint) and
+//! `adaptive-max` (from the block's largest derivative).
 //!
 //! The block walk is an interval iterator in the manner of Open VKL's
 //! `vklIterateInterval`: consecutive blocks that are sampled with the same
@@ -17,7 +19,9 @@ use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::Vec3;
 
-/// How the step level of a block is chosen: `j` in `step·2^j`.
+/// How the step level of a block is chosen: `j` in `step·2^j`, and the
+/// largest group of samples grouped reuse may share one value in (S0's
+/// groups of 1–3 are capped by it; `u32::MAX`: no cap).
 pub(in crate::render) trait Level: Sync {
     /// One level everywhere (no per-block choice).
     const FIXED: bool = false;
@@ -28,7 +32,7 @@ pub(in crate::render) trait Level: Sync {
         seg: &Segment,
         block: (usize, f32, f32),
         n: &mut Counters,
-    ) -> i32
+    ) -> (i32, u32)
     where
         Self: Sized;
 }
@@ -46,12 +50,13 @@ impl Level for Fixed {
         _: &Segment,
         _: (usize, f32, f32),
         _: &mut Counters,
-    ) -> i32 {
-        0
+    ) -> (i32, u32) {
+        (0, u32::MAX)
     }
 }
 
-/// S0 eqs. 1–6: `k` the largest partial derivative at the block's midpoint.
+/// `adaptive-s0`, S0 eqs. 1–6: `k` the largest partial derivative at the
+/// block's midpoint.
 pub(in crate::render) struct Midpoint;
 
 impl Level for Midpoint {
@@ -63,15 +68,15 @@ impl Level for Midpoint {
         seg: &Segment,
         (b, ta, tb): (usize, f32, f32),
         n: &mut Counters,
-    ) -> i32 {
+    ) -> (i32, u32) {
         if f.empty[b] {
-            return st.level_hi;
+            return (st.level_hi, u32::MAX);
         }
         let tm = 0.5 * (ta + tb);
         let g = f.grid.gradient(seg.o + seg.d * tm);
         n.interpolations += 6;
         let k = g.x.abs().max(g.y.abs()).max(g.z.abs());
-        st.level_of(k, seg.t_out, tm)
+        (st.level_of(k, seg.t_out, tm), u32::MAX)
     }
 }
 
@@ -87,12 +92,65 @@ impl Level for BlockMax<'_> {
         seg: &Segment,
         (b, ta, tb): (usize, f32, f32),
         _: &mut Counters,
-    ) -> i32 {
+    ) -> (i32, u32) {
         if f.empty[b] {
-            return st.level_hi;
+            return (st.level_hi, u32::MAX);
         }
-        st.level_of(self.0[b], seg.t_out, 0.5 * (ta + tb))
+        (st.level_of(self.0[b], seg.t_out, 0.5 * (ta + tb)), u32::MAX)
     }
+}
+
+/// `adaptive`: `k` the block's bound on the change of the classified
+/// signal per voxel ([`crate::render::blocks::BlockGrid::classified_change`],
+/// recomputed per transfer function), with `k_ref` the tolerance per base
+/// step. The block's allowed step is `x = k_ref / F` base steps; the level
+/// is `round(log₂ x)` clamped, and grouped reuse may share one value over
+/// `⌊x / 2^j⌋` samples of that level (1–3): as far as the allowed step
+/// reaches, so grouping never reconstructs more coarsely than the
+/// tolerance allows.
+pub(in crate::render) struct Classified<'a>(pub &'a [f32]);
+
+impl Level for Classified<'_> {
+    #[inline(always)]
+    fn level<T: Voxel>(
+        &self,
+        st: &Steps<Self>,
+        f: &Frame<'_, T>,
+        seg: &Segment,
+        (b, ta, tb): (usize, f32, f32),
+        _: &mut Counters,
+    ) -> (i32, u32) {
+        if f.empty[b] {
+            return (st.level_hi, u32::MAX);
+        }
+        classified_level(
+            self.0[b],
+            st.k_ref,
+            seg.t_out / (0.5 * (ta + tb)).max(1e-6),
+            (st.level_lo, st.level_hi),
+        )
+    }
+}
+
+/// [`Classified`]'s rule for a block with classified change `k` per voxel,
+/// S0's distance factor `|MN|/|MS|` and tolerance per base step `k_ref`:
+/// the level `j` and the group cap.
+#[inline(always)]
+pub(in crate::render) fn classified_level(
+    k: f32,
+    k_ref: f32,
+    distance: f32,
+    (lo, hi): (i32, i32),
+) -> (i32, u32) {
+    if k <= 0.0 {
+        return (hi, u32::MAX);
+    }
+    // The allowed step, in base steps.
+    let x = k_ref / (k * distance);
+    let j = (x.log2().round() as i32).clamp(lo, hi);
+    // The largest group that keeps reuse within the allowed step: ⌊x/2^j⌋
+    // samples of level j, at least 1 and at most S0's 3.
+    (j, (x / 2f32.powi(j)).floor().clamp(1.0, 3.0) as u32)
 }
 
 /// A step-per-block marcher: the level rule and the step tables.
@@ -151,6 +209,8 @@ struct Run {
     n0: u32,
     n1: u32,
     li: usize,
+    /// The group cap of grouped reuse ([`Level`]).
+    cap: u32,
 }
 
 impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
@@ -174,6 +234,7 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
                     n0: n0 as u32,
                     n1: n1 as u32,
                     li: 0,
+                    cap: u32::MAX,
                 };
                 if self.sample_run(f, seg, r, &mut pending, s, c, n) {
                     return true;
@@ -201,7 +262,7 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
             if ta >= t_stop && pending.is_none() && run.is_none() {
                 break;
             }
-            let j = self.rule.level(self, f, seg, (b, ta, tb), n);
+            let (j, cap) = self.rule.level(self, f, seg, (b, ta, tb), n);
             let li = (j - self.level_lo) as usize;
             let st = self.level_steps[li];
             let n0 = ((ta - seg.t0) / st).ceil().max(0.0);
@@ -233,7 +294,7 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
             if skip {
                 s.restart();
             } else {
-                run = Some(Run { n0, n1, li });
+                run = Some(Run { n0, n1, li, cap });
             }
         }
         if let Some(r) = run {
@@ -267,6 +328,7 @@ impl<L> Steps<'_, L> {
         let q = &self.level_tables[r.li];
         let last = r.n1 - 1;
         s.restart();
+        s.limit(r.cap);
         for k in r.n0..last {
             let t = seg.t0 + k as f32 * st;
             // No `alpha > 0` test: a zero composites as nothing, and the
