@@ -138,7 +138,7 @@ impl BlockGrid {
     /// With shading (`shade` > 0: the diffuse and specular weights, the
     /// share of a sample's colour the normal decides), the colour also
     /// changes as the normal turns, which the transfer function does not
-    /// show: the bound is raised to `shade × ` [`TURN`] `×` the block's
+    /// show: the bound is raised to `shade × 0.25 ×` the block's
     /// largest opacity. Thin haze keeps
     /// its long steps; a block dense enough to show a lit surface gets the
     /// fine ones, where rays terminate within a few samples anyway.
