@@ -79,12 +79,8 @@ impl GpuRenderer {
         }
         let blocks = self.blocks(&mut st, params.block_size as usize);
         if blocks.tf.as_ref() != Some(tf) {
-            let flags: Vec<u32> = blocks
-                .grid
-                .empty_flags(tf)
-                .into_iter()
-                .map(u32::from)
-                .collect();
+            blocks.empty_flags = blocks.grid.empty_flags(tf);
+            let flags: Vec<u32> = blocks.empty_flags.iter().map(|&e| u32::from(e)).collect();
             queue.write_buffer(&blocks.empty, 0, bytemuck::cast_slice(&flags));
             blocks.tf = Some(tf.clone());
         }
@@ -92,11 +88,10 @@ impl GpuRenderer {
         let k_tf = (params.method == Method::Adaptive).then(|| (tf.clone(), params.shading));
         if matches!(params.method, Method::Adaptive | Method::AdaptiveMax) && blocks.k_tf != k_tf {
             if k_tf.is_some() {
-                let empty = blocks.grid.empty_flags(tf);
                 let k = blocks.grid.classified_change(
                     &Lut::new(tf, params.step),
                     &blocks.max_gradient,
-                    &empty,
+                    &blocks.empty_flags,
                     params.shade_weight(),
                 );
                 queue.write_buffer(&blocks.max_grad, 0, bytemuck::cast_slice(&k));

@@ -69,6 +69,9 @@ pub(crate) struct Blocks {
     /// Largest gradient component per block, on the CPU (what `max_grad`
     /// holds for `adaptive-max`, and the classified change's input).
     pub(crate) max_gradient: Vec<f32>,
+    /// Emptiness flags under `tf`, on the CPU (the classified change's
+    /// input).
+    pub(crate) empty_flags: Vec<bool>,
     /// The transfer function the flags were computed for.
     pub(crate) tf: Option<TransferFunction>,
     /// What `max_grad` holds: `None` the largest gradients, `Some((tf,
@@ -420,6 +423,7 @@ impl GpuRenderer {
                 empty,
                 max_grad,
                 max_gradient: maxg,
+                empty_flags: Vec::new(),
                 tf: None,
                 k_tf: None,
             }
