@@ -179,7 +179,11 @@ pub struct SceneArgs {
     /// blocks skip more tightly and cost more DDA steps.
     #[arg(long, value_name = "N", help_heading = "Ray casting")]
     pub block_size: Option<u32>,
-    /// A random start offset per pixel against wood-grain artefacts: on or off (default off).
+    /// A start offset per pixel against wood-grain artefacts (rings where a
+    /// fixed step meets a surface): on or off (default on). The offsets are
+    /// independent per pixel (seeded by --seed) and follow the golden ratio
+    /// over --spp passes, so the error of a coarse step becomes fine noise
+    /// that passes average away.
     #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
     pub jitter: Option<String>,
     /// Background: black, white, R,G,B (0…1) or #rrggbb.

@@ -9,8 +9,21 @@ struct Walker {
     block: vec3<i32>,
     step: vec3<i32>,
     t_max: vec3<f32>,
-    t_delta: vec3<f32>,
+    o: vec3<f32>,
+    inv_d: vec3<f32>,
 };
+
+// BlockWalker's crossing: the far plane of block c along one axis, as
+// (plane − o)·(1/d), so a boundary has the same bits from any start.
+fn crossing(c: i32, step: i32, b: f32, o: f32, inv_d: f32) -> f32 {
+    if step > 0 {
+        return (f32(c + 1) * b - o) * inv_d;
+    }
+    if step < 0 {
+        return (f32(c) * b - o) * inv_d;
+    }
+    return BIG;
+}
 
 fn walker_new(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32) -> Walker {
     var w: Walker;
@@ -18,6 +31,8 @@ fn walker_new(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32) -> Walker {
     let p = o + d * t_in;
     w.t = t_in;
     w.t_out = t_out;
+    w.o = o;
+    w.inv_d = 1.0 / d;
     for (var a = 0; a < 3; a += 1) {
         let n = i32(P.block_counts[a]);
         let q = p[a] / b;
@@ -30,17 +45,12 @@ fn walker_new(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32) -> Walker {
         c = clamp(c, 0, n - 1);
         w.block[a] = c;
         w.step[a] = 0;
-        w.t_max[a] = BIG;
-        w.t_delta[a] = BIG;
         if d[a] > 0.0 {
             w.step[a] = 1;
-            w.t_max[a] = (f32(c + 1) * b - o[a]) / d[a];
-            w.t_delta[a] = b / d[a];
         } else if d[a] < 0.0 {
             w.step[a] = -1;
-            w.t_max[a] = (f32(c) * b - o[a]) / d[a];
-            w.t_delta[a] = -b / d[a];
         }
+        w.t_max[a] = crossing(c, w.step[a], b, o[a], w.inv_d[a]);
     }
     return w;
 }
@@ -66,8 +76,8 @@ fn walker_next(w: ptr<function, Walker>) -> Stretch {
     s.ta = (*w).t;
     s.tb = t_exit;
     (*w).t = t_exit;
-    (*w).t_max[a] += (*w).t_delta[a];
     (*w).block[a] += (*w).step[a];
+    (*w).t_max[a] = crossing((*w).block[a], (*w).step[a], f32(P.block_size), (*w).o[a], (*w).inv_d[a]);
     if (*w).block[a] < 0 || (*w).block[a] >= i32(P.block_counts[a]) {
         (*w).t = (*w).t_out;
     }
@@ -167,7 +177,8 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
         }
     }
     if pend {
-        let alpha = alpha_for(pend_entry, max(t_out, pend_t) - pend_t);
+        // Segment::t_end: the exit moved on by the jitter offset.
+        let alpha = alpha_for(pend_entry, max(t_out + (t0 - t_in), pend_t) - pend_t);
         return alpha > 0.0 && add(pend_rgb, alpha);
     }
     return false;
@@ -220,10 +231,10 @@ fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -
             let s = r_step * unit;
             if head.entry >= 0 {
                 var alpha: f32;
-                if t + s <= t_out {
+                if t + s < t_out {
                     alpha = 1.0 - exp(-lut_entry(head.entry).w * r_step);
                 } else {
-                    alpha = alpha_for(head.entry, t_out - t);
+                    alpha = alpha_for(head.entry, t_out + (t0 - t_in) - t);
                 }
                 if alpha > 0.0 && add(head.rgb, alpha) {
                     return true;

@@ -242,7 +242,7 @@ impl<T: Voxel> Marcher<T> for LodRay<'_> {
             }
         }
         if let Some(p) = pending {
-            return flush(f, p, t_out.max(p.t), acc);
+            return flush(f, p, seg.t_end().max(p.t), acc);
         }
         false
     }

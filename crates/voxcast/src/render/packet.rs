@@ -171,11 +171,12 @@ struct Lane {
     /// Towards the eye (world), for shading.
     view: Vec3,
     t0: f32,
-    t_out: f32,
+    /// Where the last sample's stretch ends (`Segment::t_end`).
+    t_end: f32,
     /// Samples `k0..k_end` go through the vector loop.
     k0: u32,
     k_end: u32,
-    /// The last sample, composited with its stretch to `t_out`.
+    /// The last sample, composited with its stretch to `t_end`.
     last: Option<u32>,
 }
 
@@ -224,7 +225,7 @@ impl<T: Voxel> Packets<'_, T> {
             d,
             view: -dir,
             t0,
-            t_out,
+            t_end: t_out + (t0 - t_in),
             k0,
             k_end,
             last,
@@ -322,7 +323,7 @@ impl<T: Voxel> Packets<'_, T> {
         if pa <= 0.0 {
             return false;
         }
-        let ds = l.t_out.max(t) - t;
+        let ds = l.t_end.max(t) - t;
         let alpha = 1.0 - (-f.lut.sigma(entry) * ds / f.unit).exp();
         if alpha <= 0.0 {
             return false;

@@ -323,7 +323,9 @@ pub struct RenderParams {
     pub grouped: bool,
     /// Empty-space skipping over blocks whose values are all transparent.
     pub skip_empty: bool,
-    /// A random start offset in [0, Δ) per pixel, against wood-grain artefacts.
+    /// A start offset in [0, Δ) per pixel, against wood-grain artefacts (on
+    /// by default): independent per pixel, a golden-ratio sequence over the
+    /// passes, seeded by `seed` ([`crate::render::rng::pixel_sequence`]).
     pub jitter: bool,
     /// Parameters of `adaptive` and `adaptive-max`.
     pub adaptive: AdaptiveParams,
@@ -362,7 +364,7 @@ impl Default for RenderParams {
             seed: 0,
             grouped: false,
             skip_empty: true,
-            jitter: false,
+            jitter: true,
             adaptive: AdaptiveParams::default(),
             threshold: ThresholdParams::default(),
             block_size: blocks::DEFAULT_BLOCK as u32,

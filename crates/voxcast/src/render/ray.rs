@@ -90,6 +90,21 @@ pub(super) struct Segment {
     pub pass: u32,
 }
 
+impl Segment {
+    /// Where the stretch of the ray's last sample ends: the exit, moved on
+    /// by the jitter offset `t₀ − t_in`. Each sample stands for the step
+    /// after it, so a jittered grid leaves `[t_in, t₀)` uncovered at the
+    /// front; the last sample covers as much past the exit, which makes the
+    /// stretches add up to exactly the ray's length (an absorbing slab of
+    /// length L gets `e^(−σL)` at any offset) and puts every sample inside
+    /// the step-long interval `[t_in + n·s, t_in + (n+1)·s)` it stands for —
+    /// jittered, stratified sampling.
+    #[inline(always)]
+    pub fn t_end(&self) -> f32 {
+        self.t_out + (self.t0 - self.t_in)
+    }
+}
+
 /// Per-ray counters, kept in registers and added to the tile's stats once.
 #[derive(Default)]
 pub(super) struct Counters {

@@ -42,6 +42,13 @@ pub fn intersect_box(origin: Vec3, inv_dir: Vec3, lo: Vec3, hi: Vec3) -> Option<
 /// `(t_enter, t_exit, block_index)` for every block the ray crosses between
 /// `t_in` and `t_out`, front to back, with consecutive stretches sharing
 /// their boundary value exactly.
+///
+/// Every crossing is computed from its plane, `(plane − o)·(1/d)` — the
+/// form [`intersect_box`] uses — instead of accumulating `t_delta`, so a
+/// boundary has the same bits whichever block the walk started in, and the
+/// same as the occupied box's face: a walk from the ray's entry and one from
+/// the occupied box put every sample in the same block (skipping changes no
+/// pixel, even for a sample that lands on a boundary).
 pub struct BlockWalker {
     t: f32,
     t_out: f32,
@@ -49,7 +56,9 @@ pub struct BlockWalker {
     counts: [i64; 3],
     step: [i64; 3],
     t_max: [f32; 3],
-    t_delta: [f32; 3],
+    o: [f32; 3],
+    inv_d: [f32; 3],
+    size: f32,
     /// Stay in the edge block past the grid (see `next`).
     stay: bool,
 }
@@ -77,7 +86,7 @@ impl BlockWalker {
         let mut block = [0i64; 3];
         let mut step = [0i64; 3];
         let mut t_max = [f32::INFINITY; 3];
-        let mut t_delta = [f32::INFINITY; 3];
+        let inv_d = [1.0 / d.x, 1.0 / d.y, 1.0 / d.z];
         for a in 0..3 {
             let n = counts[a] as i64;
             let q = p[a] / b;
@@ -91,13 +100,10 @@ impl BlockWalker {
             block[a] = c;
             if d[a] > 0.0 {
                 step[a] = 1;
-                t_max[a] = ((c + 1) as f32 * b - o[a]) / d[a];
-                t_delta[a] = b / d[a];
             } else if d[a] < 0.0 {
                 step[a] = -1;
-                t_max[a] = (c as f32 * b - o[a]) / d[a];
-                t_delta[a] = -b / d[a];
             }
+            t_max[a] = crossing(c, step[a], b, o[a], inv_d[a]);
         }
         BlockWalker {
             t: t_in,
@@ -106,9 +112,22 @@ impl BlockWalker {
             counts: counts.map(|c| c as i64),
             step,
             t_max,
-            t_delta,
+            o: o.to_array(),
+            inv_d,
+            size: b,
             stay: false,
         }
+    }
+}
+
+/// Where a ray leaves block `c` along one axis going `step` (±1; 0: never):
+/// the far plane's `(plane − o)·(1/d)`.
+#[inline(always)]
+fn crossing(c: i64, step: i64, b: f32, o: f32, inv_d: f32) -> f32 {
+    match step {
+        1 => ((c + 1) as f32 * b - o) * inv_d,
+        -1 => (c as f32 * b - o) * inv_d,
+        _ => f32::INFINITY,
     }
 }
 
@@ -132,8 +151,14 @@ impl Iterator for BlockWalker {
         let index = (bx + self.counts[0] * (by + self.counts[1] * bz)) as usize;
         let enter = self.t;
         self.t = t_exit;
-        self.t_max[a] += self.t_delta[a];
         self.block[a] += self.step[a];
+        self.t_max[a] = crossing(
+            self.block[a],
+            self.step[a],
+            self.size,
+            self.o[a],
+            self.inv_d[a],
+        );
         if self.block[a] < 0 || self.block[a] >= self.counts[a] {
             // Past the grid's last block on this axis. The ray may still be
             // inside the sample box — a one-voxel axis has a box half a

@@ -241,7 +241,7 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
                 }
             }
             return match pending {
-                Some(p) => flush(f, p, seg.t_out.max(p.t), c),
+                Some(p) => flush(f, p, seg.t_end().max(p.t), c),
                 None => false,
             };
         }
@@ -303,7 +303,7 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
             }
         }
         if let Some(p) = pending {
-            return flush(f, p, seg.t_out.max(p.t), c);
+            return flush(f, p, seg.t_end().max(p.t), c);
         }
         false
     }

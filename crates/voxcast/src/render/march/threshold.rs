@@ -59,10 +59,12 @@ impl<T: Voxel> Marcher<T> for Threshold<'_> {
                 let r = self.params.range(sample.value);
                 let st = self.steps[r];
                 if let Some((i, rgb)) = sample.hit {
-                    let alpha = if t + st <= seg.t_out {
+                    // The last sample's stretch ends at `t_end` (the exit
+                    // plus the jitter offset, see `Segment::t_end`).
+                    let alpha = if t + st < seg.t_out {
                         self.alphas[r][i]
                     } else {
-                        1.0 - (-f.lut.sigma(i) * (seg.t_out - t) / f.unit).exp()
+                        1.0 - (-f.lut.sigma(i) * (seg.t_end() - t) / f.unit).exp()
                     };
                     if alpha > 0.0 && c.add(rgb, alpha) {
                         return true;
