@@ -10,6 +10,9 @@
 //!   frame by frame over a series (S0's Table 3 and Fig. 14).
 //! * [`ttq`]: time to quality, the fair comparison of Riemann-sum marchers
 //!   with S1's Monte-Carlo ones (each method's cost to reach a PSNR).
+//! * [`quality`]: `--quality DB`, the setting of a method that reaches a
+//!   target PSNR, chosen from a low-resolution pilot (`voxcast render` and
+//!   `voxcast bench` use it).
 //! * [`chart`]: the two reports as PNG charts (plotters, with an embedded
 //!   font).
 //!
@@ -48,6 +51,7 @@
 
 pub mod bench_frames;
 pub mod chart;
+pub mod quality;
 mod reference;
 mod report;
 mod runner;
@@ -84,6 +88,10 @@ pub struct BenchConfig {
     pub cache_dir: Option<PathBuf>,
     /// Render the reference even when it is cached (and replace the cache).
     pub refresh_reference: bool,
+    /// A target PSNR: every method renders with the setting
+    /// [`quality::choose`] picks for it, so the speed-ups compare methods
+    /// at equal quality; the report gives each method's setting.
+    pub quality: Option<f64>,
 }
 
 impl Default for BenchConfig {
@@ -94,6 +102,7 @@ impl Default for BenchConfig {
             warmup: 1,
             cache_dir: Some(default_cache_dir()),
             refresh_reference: false,
+            quality: None,
         }
     }
 }

@@ -150,6 +150,9 @@ pub struct MethodResult {
     /// baseline.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub added_as_baseline: bool,
+    /// The setting `--quality` chose for it, and the pilot's evidence.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quality: Option<crate::quality::QualityChoice>,
     /// The measurements; absent when the method failed.
     #[serde(flatten)]
     pub measured: Option<Measured>,

@@ -2,6 +2,7 @@
 //! methods' warm-up and timed renders interleaved round by round, each
 //! compared with the reference, gathered into a [`BenchReport`].
 
+use crate::quality::{self, QualityChoice};
 use crate::reference::{
     cache_paths, load_cached, reference_key, reference_params, store_cached, CacheMeta,
     REFERENCE_FORMAT,
@@ -22,6 +23,8 @@ struct Slot {
     spec: MethodSpec,
     added: bool,
     params: RenderParams,
+    /// The setting `--quality` chose.
+    quality: Option<QualityChoice>,
     times: Vec<f64>,
     stats: Option<RenderStats>,
     /// PSNR and SSIM of the first image against the reference (each image
@@ -100,6 +103,7 @@ pub fn run_on(
             spec,
             added,
             params,
+            quality: None,
             times: Vec::new(),
             stats: None,
             error_metrics: None,
@@ -113,6 +117,20 @@ pub fn run_on(
     let renderer =
         Renderer::new(&prepared.volume, prepared.window)?.with_geometry(prepared.geometry.clone());
     let setup_ms = t.elapsed().as_secs_f64() * 1e3;
+
+    // `--quality`: each method's setting from its pilot (on the CPU, which
+    // the GPU matches), before anything is timed.
+    if let Some(target) = config.quality {
+        let pilot = |p: &RenderParams| renderer.render(&prepared.tf, &scene.camera, p, &|_, _| {});
+        for slot in slots.iter_mut() {
+            let spec = slot.spec.to_string();
+            let choice =
+                quality::choose(&slot.params, target, quality::PILOT_PIXELS, &pilot, &|_| {})
+                    .map_err(|e| Error::invalid(format!("method `{spec}`: {e}")))?;
+            slot.params = choice.params.clone();
+            slot.quality = Some(choice);
+        }
+    }
 
     let key = reference_key(scene, prepared);
     let cached = match &config.cache_dir {
@@ -278,6 +296,7 @@ pub fn run_on(
             method: slot.spec.method.name().to_string(),
             grouped: slot.spec.grouped,
             added_as_baseline: slot.added,
+            quality: slot.quality.clone(),
             measured,
             error: slot.error.clone(),
         });
@@ -360,6 +379,7 @@ mod tests {
             warmup: 0,
             cache_dir: Some(dir.path().to_path_buf()),
             refresh_reference: false,
+            quality: None,
         };
         let calls = std::sync::atomic::AtomicUsize::new(0);
         let last = std::sync::Mutex::new((0, 0));

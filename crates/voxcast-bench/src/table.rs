@@ -51,7 +51,10 @@ fn rows(report: &BenchReport) -> Vec<[String; 7]> {
         .iter()
         .map(|m| match &m.measured {
             Some(x) => [
-                m.name.clone(),
+                match &m.quality {
+                    Some(q) => format!("{} ({})", m.name, q.setting()),
+                    None => m.name.clone(),
+                },
                 grouped_int(x.samples),
                 grouped_int(x.interpolations),
                 format!(

@@ -57,6 +57,13 @@ pub struct BenchArgs {
     /// spp against a --reference-spp render of that integrator.
     #[arg(long, value_name = "DB")]
     pub target_psnr: Option<f64>,
+    /// Compare the methods at equal quality: each renders with the setting a
+    /// low-resolution pilot picks for it to reach DB dB PSNR against the
+    /// reference (the step, adaptive's tolerance, threshold's steps, scaled
+    /// together; early ray termination tightened so it cannot cap the PSNR);
+    /// the table names each method's setting. See `voxcast render --quality`.
+    #[arg(long, value_name = "DB", conflicts_with = "target_psnr")]
+    pub quality: Option<f64>,
     /// With --target-psnr: also compare at equal time — for each method the
     /// highest PSNR among the settings it tried that rendered within
     /// SECONDS (default: the time uniform takes to reach the target).

@@ -62,6 +62,16 @@ pub struct RenderArgs {
     /// [render.threshold] and [render.lod] in a scene file.
     #[arg(long, value_name = "METHOD", help_heading = "Ray casting")]
     pub method: Option<String>,
+    /// Pick the sampling for a target image quality instead of --step: a
+    /// PSNR in dB against a converged reference (30 rough, 40 good, 50 hard
+    /// to tell apart). A low-resolution pilot (about 128×128, the same
+    /// camera) renders the reference and searches one factor on every length
+    /// the method samples with (the step, adaptive's tolerance, threshold's
+    /// steps), then early ray termination is tightened so it cannot cap the
+    /// PSNR. Says what it chose; --save-scene keeps the setting, so the
+    /// pilot runs once. Not for single-scatter and path (use --spp).
+    #[arg(long, value_name = "DB", help_heading = "Ray casting")]
+    pub quality: Option<f64>,
     /// Where to render: cpu, gpu or auto (--help says which methods the GPU
     /// has).
     #[arg(long, value_enum, default_value = "cpu", help_heading = "Device", long_help = device_help(""))]

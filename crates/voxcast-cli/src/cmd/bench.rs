@@ -79,7 +79,13 @@ pub fn run(a: BenchArgs) -> Result<()> {
         warmup: a.warmup,
         cache_dir: Some(bench::default_cache_dir()),
         refresh_reference: a.refresh_reference,
+        quality: a.quality,
     };
+    if let (Some(q), false) = (a.quality, quiet) {
+        eprintln!(
+            "--quality {q} dB: a pilot per method picks its setting before the timed renders"
+        );
+    }
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     bar.set_style(
         ProgressStyle::with_template("{msg:<26} {bar:40.cyan/blue} {percent:>3}% {elapsed}<{eta}")
@@ -119,6 +125,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
             bench::CacheStatus::Off => "rendered",
         };
         eprintln!("reference {how}: {file}");
+        for m in &report.methods {
+            if let Some(q) = &m.quality {
+                eprintln!("{}: {}", m.name, q.describe());
+            }
+        }
     }
     if a.markdown {
         print!("{}", bench::markdown(&report));

@@ -13,7 +13,7 @@ use voxcast::scene::Scene;
 use voxcast_gpu::Device;
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    let scene = a.scene()?;
+    let mut scene = a.scene()?;
     let out = a
         .output
         .clone()
@@ -27,6 +27,33 @@ pub fn run(a: RenderArgs) -> Result<()> {
     outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
     let quiet = a.quiet;
     let prepared = prepare(&scene, &mut outputs, quiet)?;
+    if let Some(target) = a.quality {
+        // The pilot renders on the CPU, which the GPU matches.
+        let renderer = voxcast::render::Renderer::new(&prepared.volume, prepared.window)?
+            .with_geometry(prepared.geometry.clone());
+        let render = |p: &voxcast::render::RenderParams| {
+            renderer.render(&prepared.tf, &scene.camera, p, &|_, _| {})
+        };
+        let tell = |what: &str| {
+            if !quiet && std::io::stderr().is_terminal() {
+                eprint!("\rquality pilot: {what:<40}");
+            }
+        };
+        let choice = voxcast_bench::quality::choose(
+            &scene.render,
+            target,
+            voxcast_bench::quality::PILOT_PIXELS,
+            &render,
+            &tell,
+        )?;
+        if !quiet {
+            if std::io::stderr().is_terminal() {
+                eprint!("\r{:60}\r", "");
+            }
+            eprintln!("{}", choice.describe());
+        }
+        scene.render = choice.params;
+    }
     let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
     bar.set_style(
         ProgressStyle::with_template("rendering {bar:40.cyan/blue} {percent:>3}% {elapsed}<{eta}")
