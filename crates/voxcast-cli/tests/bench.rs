@@ -116,7 +116,8 @@ fn bench_json_has_every_field_for_every_method() {
 fn reference_against_itself_gives_infinite_psnr() {
     let dir = tempfile::tempdir().unwrap();
     let cache = dir.path().join("cache");
-    // `uniform` at the reference's own settings renders the reference.
+    // `uniform` at the reference's own settings (jitter off, the default
+    // being on) renders the reference.
     let o = bench(
         &[
             "builtin:sphere",
@@ -129,6 +130,8 @@ fn reference_against_itself_gives_infinite_psnr() {
             "--ert",
             "1",
             "--skip-empty",
+            "off",
+            "--jitter",
             "off",
             "--repeat",
             "1",
@@ -150,6 +153,90 @@ fn reference_against_itself_gives_infinite_psnr() {
     assert_eq!(m["samples"], j["reference"]["samples"]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert!(out.contains('∞'), "{out}");
+}
+
+/// `--quality DB`: bench times each method at the setting its pilot chose
+/// and names it; render says what it chose and `--save-scene` keeps it.
+#[test]
+fn quality_picks_a_setting_per_method_and_render_keeps_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let o = bench(
+        &[
+            "builtin:demo",
+            "--size",
+            "96x96",
+            "--methods",
+            "uniform,adaptive+grouped",
+            "--quality",
+            "42",
+            "--repeat",
+            "1",
+            "--warmup",
+            "0",
+            "--json",
+            "q.json",
+        ],
+        dir.path(),
+        &cache,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j = read_json(&dir.path().join("q.json"));
+    for m in j["methods"].as_array().unwrap() {
+        let q = &m["quality"];
+        assert_eq!(q["target_db"], 42.0, "{m}");
+        assert!(q["step"].as_f64().unwrap() > 0.0, "{m}");
+        assert!(!q["trials"].as_array().unwrap().is_empty(), "{m}");
+        // The full image lands near the target the pilot aimed at.
+        let psnr = m["psnr_db"].as_f64().unwrap();
+        assert!((psnr - 42.0).abs() < 2.0, "{m}");
+    }
+    assert!(j["methods"][1]["quality"]["tolerance"].is_number());
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(table.contains("adaptive+grouped (step "), "{table}");
+
+    let o = common::voxcast(
+        &[
+            "render",
+            "builtin:demo",
+            "--size",
+            "96x96",
+            "--quality",
+            "42",
+            "-o",
+            "q.png",
+            "--save-scene",
+            "q.toml",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let said = stderr(&o);
+    assert!(said.contains("--quality 42 dB: step "), "{said}");
+    let saved = std::fs::read_to_string(dir.path().join("q.toml")).unwrap();
+    let step: f64 = saved
+        .lines()
+        .find_map(|l| l.strip_prefix("step = "))
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or_else(|| panic!("no step in {saved}"));
+    assert!(
+        step != 0.5,
+        "the saved scene keeps the chosen step: {saved}"
+    );
+    // Nothing to measure against for the path tracer.
+    let o = common::voxcast(
+        &[
+            "render",
+            "builtin:demo",
+            "--method",
+            "path",
+            "--quality",
+            "40",
+        ],
+        dir.path(),
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--spp"), "{}", stderr(&o));
 }
 
 #[test]
