@@ -933,11 +933,11 @@ mod avx2 {
                     _mm256_storeu_ps(is.tb.as_mut_ptr(), tbv);
                     _mm256_storeu_si256(is.off.as_mut_ptr() as *mut __m256i, offv);
                     let mut dead = 0i32;
-                    for i in 0..LANES {
+                    for (i, l) in imp.iter_mut().enumerate() {
                         if (bits >> i) & 1 == 0 {
                             continue;
                         }
-                        let l = imp[i].as_mut().unwrap_unchecked();
+                        let l = l.as_mut().unwrap_unchecked();
                         match ip.next(l, is.t[i], is.s[i], is.tb[i]) {
                             Some((t, s, tb, j)) => {
                                 is.t[i] = t;
