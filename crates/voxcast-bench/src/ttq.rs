@@ -4,7 +4,7 @@
 //! same" picture; this measures "the same").
 //!
 //! Every method walks a ladder of settings from cheap to dear: deterministic
-//! marchers halve the step (2, 1, ½, ¼, ⅛ voxel); stochastic ones try each
+//! marchers halve the step (4, 2, 1, ½, ¼, ⅛ voxel); stochastic ones try each
 //! step with 1, 2, 4, … 32 samples per pixel; `single-scatter` and `path`
 //! double `spp` (1 … 256). Each setting is rendered once; the cheapest that
 //! reaches the target is then timed `repeat` times and its median reported.
@@ -131,7 +131,7 @@ pub struct TtqReport {
     pub results: Vec<TtqResult>,
 }
 
-const STEPS: [f32; 5] = [2.0, 1.0, 0.5, 0.25, 0.125];
+const STEPS: [f32; 6] = [4.0, 2.0, 1.0, 0.5, 0.25, 0.125];
 const SPPS: [u32; 6] = [1, 2, 4, 8, 16, 32];
 
 /// Runs the time-to-quality comparison; `progress(message)` is called
@@ -142,6 +142,24 @@ pub fn run(
     config: &TtqConfig,
     progress: &dyn Fn(&str),
 ) -> Result<TtqReport> {
+    let mut r = run_targets(scene, prepared, config, &[config.target_psnr], progress)?;
+    Ok(r.remove(0))
+}
+
+/// [`run`] for several targets at once (`config.target_psnr` is ignored):
+/// one reference and one ladder per method, walked at each step until the
+/// highest target is reached; each setting is timed once however many
+/// targets use it. One report per target, in the order given.
+pub fn run_targets(
+    scene: &Scene,
+    prepared: &Prepared,
+    config: &TtqConfig,
+    targets: &[f64],
+    progress: &dyn Fn(&str),
+) -> Result<Vec<TtqReport>> {
+    if targets.is_empty() {
+        return Err(Error::invalid("no target PSNR"));
+    }
     if let Some(t) = config.time_budget {
         if !(t.is_finite() && t > 0.0) {
             return Err(Error::invalid(format!(
@@ -149,12 +167,14 @@ pub fn run(
             )));
         }
     }
-    if !(config.target_psnr.is_finite() && config.target_psnr > 0.0) {
-        return Err(Error::invalid(format!(
-            "target PSNR {}: must be a positive number of dB",
-            config.target_psnr
-        )));
+    for &t in targets {
+        if !(t.is_finite() && t > 0.0) {
+            return Err(Error::invalid(format!(
+                "target PSNR {t}: must be a positive number of dB"
+            )));
+        }
     }
+    let top = targets.iter().copied().fold(f64::MIN, f64::max);
     let renderer = Renderer::new(&prepared.volume, prepared.window)?;
     let render = |p: &RenderParams| renderer.render(&prepared.tf, &scene.camera, p, &|_, _| {});
     let physical = config.methods.iter().any(|m| m.method.is_physical());
@@ -175,7 +195,8 @@ pub fn run(
     };
     progress("reference");
     let (reference, ref_stats) = render(&ref_params)?;
-    let mut results = Vec::new();
+    // Every method's ladder, walked until the highest target.
+    let mut ladders: Vec<Vec<TtqPoint>> = Vec::new();
     for spec in &config.methods {
         let mut points = Vec::new();
         let mut ladder: Vec<(f32, u32)> = Vec::new();
@@ -188,7 +209,6 @@ pub fn run(
         } else {
             ladder.extend(STEPS.iter().map(|&s| (s, 1)));
         }
-        let mut reached: Vec<TtqPoint> = Vec::new();
         let mut done_step = f32::NAN;
         for (step, spp) in ladder {
             if step == done_step {
@@ -202,115 +222,129 @@ pub fn run(
             progress(&format!("{spec} step {step} spp {spp}"));
             let (img, st) = render(&p)?;
             let psnr = metrics::psnr(&img, &reference)?;
-            let pt = TtqPoint {
+            points.push(TtqPoint {
                 step,
                 spp,
                 seconds: st.seconds,
                 samples: st.samples,
                 psnr_db: psnr,
-            };
-            points.push(pt.clone());
-            if psnr >= config.target_psnr {
-                reached.push(pt);
+            });
+            if psnr >= top {
                 done_step = step;
                 if !spec.method.is_stochastic() || spec.method.is_physical() {
                     break;
                 }
             }
         }
-        let best = reached
-            .into_iter()
-            .min_by(|a, b| a.seconds.total_cmp(&b.seconds));
-        // A setting timed: the median of `--repeat` renders.
-        let time_point = |pt: &TtqPoint| -> Result<TtqPoint> {
-            let mut p = base.clone();
-            spec.apply(&mut p);
-            p.step = pt.step;
-            p.spp = pt.spp;
-            progress(&format!("{spec} timing step {} spp {}", pt.step, pt.spp));
-            let mut times = Vec::new();
-            for _ in 0..config.repeat.max(1) {
-                times.push(render(&p)?.1.seconds);
-            }
-            Ok(TtqPoint {
-                seconds: median(&times),
-                ..pt.clone()
-            })
-        };
-        let best = best.as_ref().map(time_point).transpose()?;
-        // The bracketing settings, reusing the best one's timing.
-        let timed = |pt: &TtqPoint| -> Result<TtqPoint> {
-            match best
-                .as_ref()
-                .filter(|b| b.step == pt.step && b.spp == pt.spp)
-            {
-                Some(b) => Ok(b.clone()),
-                None => time_point(pt),
-            }
-        };
-        let at_target = match bracket(&points, config.target_psnr) {
-            Some((lo, hi)) => {
-                let (below, above) = (timed(&lo)?, timed(&hi)?);
-                let (samples, seconds) = interpolate(&below, &above, config.target_psnr);
-                Some(TtqAtTarget {
-                    below,
-                    above,
-                    samples,
-                    seconds,
-                })
-            }
-            None => None,
-        };
-        results.push(TtqResult {
-            method: spec.to_string(),
-            points,
-            best,
-            speedup: None,
-            equal_time: None,
-            at_target,
-            speedup_at_target: None,
-        });
+        ladders.push(points);
     }
-    let uniform = results
-        .iter()
-        .find(|r| r.method == "uniform")
-        .and_then(|r| r.best.as_ref().map(|b| b.seconds));
-    let budget = config.time_budget.or(uniform);
-    let uniform_at_target = results
-        .iter()
-        .find(|r| r.method == "uniform")
-        .and_then(|r| r.at_target.as_ref().map(|a| a.seconds));
-    for r in &mut results {
-        r.speedup_at_target = match (uniform_at_target, &r.at_target) {
-            (Some(u), Some(a)) if a.seconds > 0.0 => Some(u / a.seconds),
-            _ => None,
-        };
-        r.speedup = match (uniform, &r.best) {
-            (Some(u), Some(b)) if b.seconds > 0.0 => Some(u / b.seconds),
-            _ => None,
-        };
-        // The timed setting counts with its median, the others with their
-        // one render.
-        let best = r.best.clone();
-        r.equal_time = budget.and_then(|t| {
-            r.points
+    // Timed settings (median of `repeat` renders), per method, shared by
+    // the targets.
+    let mut timings: Vec<Vec<TtqPoint>> = vec![Vec::new(); config.methods.len()];
+    let mut reports = Vec::new();
+    for &target in targets {
+        let mut results = Vec::new();
+        for (mi, spec) in config.methods.iter().enumerate() {
+            let points = &ladders[mi];
+            let best = points
                 .iter()
-                .map(|p| match &best {
-                    Some(b) if b.step == p.step && b.spp == p.spp => b.clone(),
-                    _ => p.clone(),
-                })
-                .filter(|p| p.seconds <= t)
-                .max_by(|a, b| a.psnr_db.total_cmp(&b.psnr_db))
+                .filter(|p| p.psnr_db >= target)
+                .min_by(|a, b| a.seconds.total_cmp(&b.seconds))
+                .cloned();
+            // A setting timed: the median of `--repeat` renders, once per setting.
+            let mut timed = |pt: &TtqPoint| -> Result<TtqPoint> {
+                if let Some(t) = timings[mi]
+                    .iter()
+                    .find(|t| t.step == pt.step && t.spp == pt.spp)
+                {
+                    return Ok(t.clone());
+                }
+                let mut p = base.clone();
+                spec.apply(&mut p);
+                p.step = pt.step;
+                p.spp = pt.spp;
+                progress(&format!("{spec} timing step {} spp {}", pt.step, pt.spp));
+                let mut times = Vec::new();
+                for _ in 0..config.repeat.max(1) {
+                    times.push(render(&p)?.1.seconds);
+                }
+                let t = TtqPoint {
+                    seconds: median(&times),
+                    ..pt.clone()
+                };
+                timings[mi].push(t.clone());
+                Ok(t)
+            };
+            let best = best.as_ref().map(&mut timed).transpose()?;
+            // The bracketing settings, reusing the best one's timing.
+            let at_target = match bracket(points, target) {
+                Some((lo, hi)) => {
+                    let (below, above) = (timed(&lo)?, timed(&hi)?);
+                    let (samples, seconds) = interpolate(&below, &above, target);
+                    Some(TtqAtTarget {
+                        below,
+                        above,
+                        samples,
+                        seconds,
+                    })
+                }
+                None => None,
+            };
+            results.push(TtqResult {
+                method: spec.to_string(),
+                points: points.clone(),
+                best,
+                speedup: None,
+                equal_time: None,
+                at_target,
+                speedup_at_target: None,
+            });
+        }
+        let uniform = results
+            .iter()
+            .find(|r| r.method == "uniform")
+            .and_then(|r| r.best.as_ref().map(|b| b.seconds));
+        let budget = config.time_budget.or(uniform);
+        let uniform_at_target = results
+            .iter()
+            .find(|r| r.method == "uniform")
+            .and_then(|r| r.at_target.as_ref().map(|a| a.seconds));
+        for (mi, r) in results.iter_mut().enumerate() {
+            r.speedup_at_target = match (uniform_at_target, &r.at_target) {
+                (Some(u), Some(a)) if a.seconds > 0.0 => Some(u / a.seconds),
+                _ => None,
+            };
+            r.speedup = match (uniform, &r.best) {
+                (Some(u), Some(b)) if b.seconds > 0.0 => Some(u / b.seconds),
+                _ => None,
+            };
+            // The timed settings count with their median, the others with
+            // their one render.
+            let timed = &timings[mi];
+            r.equal_time = budget.and_then(|t| {
+                r.points
+                    .iter()
+                    .map(|p| {
+                        timed
+                            .iter()
+                            .find(|b| b.step == p.step && b.spp == p.spp)
+                            .unwrap_or(p)
+                            .clone()
+                    })
+                    .filter(|p| p.seconds <= t)
+                    .max_by(|a, b| a.psnr_db.total_cmp(&b.psnr_db))
+            });
+        }
+        reports.push(TtqReport {
+            target_psnr_db: target,
+            width: base.width,
+            height: base.height,
+            reference_seconds: ref_stats.seconds,
+            time_budget_s: budget,
+            results,
         });
     }
-    Ok(TtqReport {
-        target_psnr_db: config.target_psnr,
-        width: base.width,
-        height: base.height,
-        reference_seconds: ref_stats.seconds,
-        time_budget_s: budget,
-        results,
-    })
+    Ok(reports)
 }
 
 /// The report as a Markdown table.

@@ -505,3 +505,49 @@ fn time_to_quality_compares_at_equal_quality_and_equal_time() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--target-psnr"), "{}", stderr(&o));
 }
+
+/// `--target-psnr 25,30`: one ladder per method for both targets, one
+/// table each, and the JSON an array of reports in the order given.
+#[test]
+fn time_to_quality_takes_several_targets() {
+    let dir = tempfile::tempdir().unwrap();
+    let cache = dir.path().join("cache");
+    let o = bench(
+        &[
+            "builtin:sphere",
+            "--size",
+            "32x32",
+            "--methods",
+            "uniform,stratified",
+            "--target-psnr",
+            "25,30",
+            "--repeat",
+            "1",
+            "-q",
+            "--json",
+            "t.json",
+        ],
+        dir.path(),
+        &cache,
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("Time to reach 25.0 dB"), "{out}");
+    assert!(out.contains("Time to reach 30.0 dB"), "{out}");
+    let j = read_json(&dir.path().join("t.json"));
+    let reports = j.as_array().expect("an array of reports");
+    assert_eq!(reports.len(), 2, "{j}");
+    for (r, target) in reports.iter().zip([25.0, 30.0]) {
+        assert_eq!(r["target_psnr_db"].as_f64().unwrap(), target);
+        for m in r["results"].as_array().unwrap() {
+            if let Some(b) = m["best"].as_object() {
+                assert!(b["psnr_db"].as_f64().unwrap() >= target, "{j}");
+            }
+        }
+    }
+    // Both reports see the same ladder.
+    assert_eq!(
+        reports[0]["results"][1]["points"],
+        reports[1]["results"][1]["points"]
+    );
+}

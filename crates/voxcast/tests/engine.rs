@@ -185,7 +185,7 @@ fn simd_levels() -> Vec<(Simd, &'static str)> {
 }
 
 /// The SIMD packets, at every level this CPU has, against the scalar loop:
-/// every stored type, both fixed-step methods, skipping on and off, early
+/// every stored type, both fixed-step methods and `importance`, skipping on and off, early
 /// termination on and off, flat and Phong, every optical model, several
 /// passes of jitter.
 /// On a CPU without AVX2 there is no level and the test checks nothing (the
@@ -202,7 +202,7 @@ fn packets_give_the_scalar_pixels() {
         let s = vol.stats();
         let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
         let mut terminated = 0;
-        for method in [Method::Uniform, Method::Jitter] {
+        for method in [Method::Uniform, Method::Jitter, Method::Importance] {
             for skip_empty in [true, false] {
                 for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
                     for optical in [

@@ -54,9 +54,11 @@ pub struct BenchArgs {
     /// setting (step, and spp for stochastic methods) whose PSNR against the
     /// reference reaches DB, and its median time; speed-ups are against
     /// uniform at the same PSNR. Include single-scatter or path to compare
-    /// spp against a --reference-spp render of that integrator.
-    #[arg(long, value_name = "DB")]
-    pub target_psnr: Option<f64>,
+    /// spp against a --reference-spp render of that integrator. Several
+    /// targets, comma-separated (40,45,50), share the reference and the
+    /// ladders; one table each, and the JSON an array of reports.
+    #[arg(long, value_name = "DB", value_delimiter = ',')]
+    pub target_psnr: Vec<f64>,
     /// Compare the methods at equal quality: each renders with the setting a
     /// low-resolution pilot picks for it to reach DB dB PSNR against the
     /// reference (the step, adaptive's tolerance, threshold's steps, scaled

@@ -46,7 +46,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     outputs.plan_optional("--chart", a.chart.as_deref(), &["png"])?;
     let quiet = a.quiet;
     let prepared = prepare(&scene, &mut outputs, quiet)?;
-    if let Some(target) = a.target_psnr {
+    if !a.target_psnr.is_empty() {
         if a.device != DeviceArg::Cpu {
             bail!(
                 "--target-psnr measures the CPU renderer only; drop --device or use --device cpu"
@@ -55,7 +55,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         if a.chart.is_some() {
             bail!("--chart draws the methods table; with --target-psnr, use --json");
         }
-        return time_to_quality(&a, &scene, &prepared, methods, target, outputs);
+        return time_to_quality(&a, &scene, &prepared, methods, outputs);
     }
     // `auto` picks the CPU when any method has no GPU version; under `gpu`
     // such a method is reported as failed in the table (the baseline
@@ -164,7 +164,6 @@ fn time_to_quality(
     scene: &Scene,
     prepared: &voxcast::scene::Prepared,
     methods: Vec<voxcast::render::MethodSpec>,
-    target: f64,
     mut outputs: Outputs,
 ) -> Result<()> {
     let mut methods = methods;
@@ -173,9 +172,10 @@ fn time_to_quality(
     {
         methods.insert(0, voxcast::render::MethodSpec::parse("uniform")?);
     }
+    let targets = &a.target_psnr;
     let config = voxcast_bench::ttq::TtqConfig {
         methods,
-        target_psnr: target,
+        target_psnr: targets[0],
         repeat: a.repeat,
         reference_spp: a.reference_spp,
         time_budget: a.time_budget,
@@ -184,14 +184,24 @@ fn time_to_quality(
     if !std::io::stderr().is_terminal() || a.quiet {
         bar.set_draw_target(ProgressDrawTarget::hidden());
     }
-    let report = voxcast_bench::ttq::run(scene, prepared, &config, &|m: &str| {
-        bar.set_message(m.to_string());
-        bar.tick();
-    })?;
+    let reports =
+        voxcast_bench::ttq::run_targets(scene, prepared, &config, targets, &|m: &str| {
+            bar.set_message(m.to_string());
+            bar.tick();
+        })?;
     bar.finish_and_clear();
-    print!("{}", voxcast_bench::ttq::markdown(&report));
+    for (i, report) in reports.iter().enumerate() {
+        if i > 0 {
+            println!();
+        }
+        print!("{}", voxcast_bench::ttq::markdown(report));
+    }
     if let Some(f) = &a.json {
-        let json = serde_json::to_string_pretty(&report)?;
+        // One target: its report, as before; several: an array of them.
+        let json = match reports.as_slice() {
+            [one] => serde_json::to_string_pretty(one)?,
+            all => serde_json::to_string_pretty(all)?,
+        };
         outputs.write(f, |w| writeln!(w, "{json}"))?;
     }
     outputs.commit()?;

@@ -265,7 +265,52 @@ fn mc_sample(p: vec3<f32>, len: f32) -> bool {
     return alpha > 0.0 && add(e.rgb, alpha);
 }
 
-// stochastic.rs uniform_mc: ⌈L/step⌉ sorted uniform positions (S1 eqs. 5–6).
+// stochastic.rs normal: a standard normal variate (Box–Muller).
+fn rng_normal(rng: ptr<function, Rng>) -> f32 {
+    let r = sqrt(-2.0 * log(1.0 - rng_uniform(rng)));
+    return r * cos(6.2831853 * rng_uniform(rng));
+}
+
+// ln(1 + w) to full precision for small w (Goldberg's trick; WGSL has no log1p).
+fn log1p_(w: f32) -> f32 {
+    let u = 1.0 + w;
+    if u == 1.0 {
+        return w;
+    }
+    return log(u) * w / (u - 1.0);
+}
+
+// stochastic.rs gamma: Gamma(a) for a ≥ 1 (Marsaglia–Tsang), the same
+// draws in the same order; the loop is bounded (a draw is accepted with
+// probability > 0.95, so 64 tries all failing never happens in practice).
+fn rng_gamma(rng: ptr<function, Rng>, a: f32) -> f32 {
+    let d = a - 1.0 / 3.0;
+    let c = 1.0 / sqrt(9.0 * d);
+    for (var tries = 0u; tries < 64u; tries += 1u) {
+        let x = rng_normal(rng);
+        let w = c * x;
+        if w <= -1.0 {
+            continue;
+        }
+        let v = (1.0 + w) * (1.0 + w) * (1.0 + w);
+        let u = 1.0 - rng_uniform(rng);
+        let x2 = x * x;
+        if u < 1.0 - 0.0331 * x2 * x2
+            || log(u) < 0.5 * x2 + d * (3.0 * log1p_(w) - w * (3.0 + w * (3.0 + w))) {
+            return d * v;
+        }
+    }
+    return d;
+}
+
+// stochastic.rs CHUNK.
+const MC_CHUNK: u32 = 32u;
+
+// stochastic.rs uniform_mc: ⌈L/step⌉ sorted uniform positions (S1 eqs. 5–6)
+// from exponential spacings, chunk by chunk as SortedUniforms draws them:
+// the chunk's spacings are summed, the rest's Gamma drawn, and the
+// spacings replayed from the saved generator (no array), so the random
+// numbers and the positions are the CPU's.
 fn march_mc(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pass_i: u32) -> bool {
     var rng = rng_for_pixel(px.x, px.y, pass_i);
     let step = P.step * P.unit;
@@ -273,17 +318,38 @@ fn march_mc(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pa
     let count = u32(max(ceil(len / step), 1.0));
     let w = len / f32(count);
     let skip = (P.flags & F_SKIP) != 0u;
-    var cur = 1.0;
-    for (var left = count; left > 0u; left -= 1u) {
-        cur *= pow(1.0 - rng_uniform(&rng), 1.0 / f32(left));
-        let u = clamp(1.0 - cur, 0.0, 1.0 - 1.1920929e-7);
-        let p = o + d * (t_in + u * len);
-        if skip && in_empty_block(p) {
-            continue;
+    var left = count;
+    var base = 0.0;
+    while left > 0u {
+        let m = min(left, MC_CHUNK);
+        var replay = rng;
+        var s = 0.0;
+        for (var i = 0u; i < m; i += 1u) {
+            s -= log(1.0 - rng_uniform(&rng));
         }
-        if mc_sample(p, w) {
-            return true;
+        let rest = left - m + 1u;
+        var tail: f32;
+        if rest == 1u {
+            tail = -log(1.0 - rng_uniform(&rng));
+        } else {
+            tail = rng_gamma(&rng, f32(rest));
         }
+        let scale = (1.0 - base) / (s + tail);
+        left -= m;
+        var sum = 0.0;
+        var u = base;
+        for (var i = 0u; i < m; i += 1u) {
+            sum -= log(1.0 - rng_uniform(&replay));
+            u = base + scale * sum;
+            let p = o + d * (t_in + min(u, 1.0 - 1.1920929e-7) * len);
+            if skip && in_empty_block(p) {
+                continue;
+            }
+            if mc_sample(p, w) {
+                return true;
+            }
+        }
+        base = u;
     }
     return false;
 }

@@ -438,7 +438,7 @@ impl Job<'_> {
         };
         let k = p.adaptive_k_ref();
         match p.method {
-            Method::Uniform | Method::Jitter => match self.packets(f, &t) {
+            Method::Uniform | Method::Jitter => match self.packets(f, &t, None) {
                 Some(out) => out,
                 None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
             },
@@ -479,6 +479,19 @@ impl Job<'_> {
                         (r * self.unit, self.lut.alphas(r))
                     })
                     .unzip();
+                // In SIMD packets where the CPU and the render allow: the
+                // levels' premultiplied tables, one after the other.
+                let tables: Vec<[f32; 4]> = (0..=stochastic::MAX_LEVEL)
+                    .flat_map(|j| *self.lut.premultiplied(p.step * (1u32 << j) as f32))
+                    .collect();
+                let imp = packet::Imp {
+                    pdf: self.pdf,
+                    steps: &steps,
+                    tables: &tables,
+                };
+                if let Some(out) = self.packets(f, &t, Some(imp)) {
+                    return out;
+                }
                 let m = stochastic::Importance {
                     pdf: self.pdf,
                     steps: &steps,
@@ -524,6 +537,7 @@ impl Job<'_> {
         &self,
         f: &Frame<'_, T>,
         t: &Tables,
+        imp: Option<packet::Imp<'_>>,
     ) -> Option<Option<(Image, RenderStats)>> {
         let p = self.params;
         // The shading `shaded` picks.
@@ -543,9 +557,9 @@ impl Job<'_> {
                 .get_or_init(|| packet::z_pairs(v, self.volume.dims())),
             _ => &[][..],
         };
-        let empty: Option<Vec<i32>> = f
-            .skip_empty
-            .then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
+        // `importance` skips nothing (its pdf has no mass in empty blocks).
+        let empty: Option<Vec<i32>> =
+            (f.skip_empty && imp.is_none()).then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
         let pk = packet::Packets {
             f,
             q: &t.level_tables[0],
@@ -557,6 +571,7 @@ impl Job<'_> {
             shading,
             z_pairs,
             level,
+            imp,
         };
         let (passes, bg) = (self.passes(), self.background());
         Some(tiles::render_tile_rows(

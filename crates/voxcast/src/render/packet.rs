@@ -1,7 +1,10 @@
 //! SIMD ray packets: eight neighbouring rays of a tile row marched in
 //! lock-step, one per lane of an AVX2 register, for the commonest render —
 //! a fixed step (`uniform`, `jitter`), trilinear, flat or Blinn–Phong
-//! shaded, front to back.
+//! shaded, front to back — and for `importance`, whose march is a fixed
+//! step per block: each lane walks its blocks in scalar code (once per
+//! block, for the block's pdf level) and the vector loop samples with its
+//! lane's spacing and reads its level's table.
 //!
 //! Each lane keeps its own ray: its sample grid `t₀ + k·s`, its first and
 //! last sample, and its accumulated colour and opacity; a lane mask drops
@@ -30,11 +33,13 @@
 
 use super::composite::Weights;
 use super::march::intersect_box;
+use super::march::BlockWalker;
 use super::optics::over_front;
 use super::ray::{Counters, Frame};
 use super::sample::{evaluate_premul, Flat, Phong};
 use super::shading::BlinnPhong;
 use super::stats::RenderStats;
+use super::stochastic::{PdfBlock, BETA, MAX_LEVEL, NO_MASS};
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::{Vec3, Vec4};
@@ -154,6 +159,71 @@ pub(super) struct Packets<'a, T> {
     pub z_pairs: &'a [u16],
     /// The instruction set ([`level`]).
     pub level: Level,
+    /// `importance`'s pdf and levels, when the packets march it.
+    pub imp: Option<Imp<'a>>,
+}
+
+/// `importance` in packets: each lane walks its blocks (scalar, once per
+/// block) for the stretch, level and spacing of its pdf, as
+/// [`super::stochastic::systematic`] does, and marches the stretch in the
+/// vector loop with its level's step.
+pub(super) struct Imp<'a> {
+    pub pdf: &'a [PdfBlock],
+    /// Per level, the spacing (world units).
+    pub steps: &'a [f32],
+    /// The levels' premultiplied tables, one after the other
+    /// (`LUT_SIZE` rows each).
+    pub tables: &'a [[f32; 4]],
+}
+
+/// One `importance` lane's walk: its blocks, the optical depth of the
+/// blocks' mean extinction so far, and its pdf offset for the first stretch.
+struct ImpLane {
+    walker: BlockWalker,
+    tau: f32,
+    /// The CDF offset ξ before the first stretch; NaN once the walk started.
+    xi: f32,
+}
+
+/// Where lane `i` samples next: position, spacing, end of its stretch,
+/// and the row offset of its level's table (in floats).
+#[derive(Clone, Copy, Default)]
+struct ImpState {
+    t: [f32; LANES],
+    s: [f32; LANES],
+    tb: [f32; LANES],
+    off: [i32; LANES],
+}
+
+impl Imp<'_> {
+    /// Moves lane `l` on from position `t` (spacing `s`, its stretch
+    /// ending at `tb`) to its next sample past the stretch, as
+    /// `systematic` carries the CDF from piece to piece: `(t, s, tb,
+    /// level)`, or `None` when the walk has ended.
+    fn next(&self, l: &mut ImpLane, t: f32, s: f32, tb: f32) -> Option<(f32, f32, f32, usize)> {
+        let beta = BETA * std::f32::consts::LOG2_E;
+        let mut ahead = if l.xi.is_nan() { (t - tb) / s } else { l.xi };
+        l.xi = f32::NAN;
+        for (ta, tb, b) in l.walker.by_ref() {
+            let blk = self.pdf[b];
+            let j = if blk.level < 0.0 {
+                NO_MASS
+            } else {
+                (blk.level + beta * l.tau).min(MAX_LEVEL as f32) as u8
+            };
+            l.tau += blk.sigma_mean * (tb - ta);
+            if j == NO_MASS {
+                continue;
+            }
+            let s = self.steps[j as usize];
+            let t = ta + ahead * s;
+            if t < tb {
+                return Some((t, s, tb, j as usize));
+            }
+            ahead = (t - tb) / s;
+        }
+        None
+    }
 }
 
 /// Whether the packets can shade with `bp`: the specular power is taken by
@@ -232,6 +302,52 @@ impl<T: Voxel> Packets<'_, T> {
         })
     }
 
+    /// Sets up an `importance` ray as [`super::trace::trace`] and
+    /// `Importance::march` do: the lane (no fixed-step samples) and its
+    /// block walk.
+    fn imp_lane(
+        &self,
+        (origin, dir): (Vec3, Vec3),
+        pixel: (u32, u32),
+        pass: u32,
+        stats: &mut RenderStats,
+    ) -> Option<(Lane, ImpLane)> {
+        let f = self.f;
+        stats.rays += 1;
+        let o = (origin - f.origin_w) * f.inv_spacing;
+        let d = dir * f.inv_spacing;
+        let inv_d = Vec3::ONE / d;
+        let (t_in, t_out) = intersect_box(o, inv_d, f.box_lo, f.box_hi)?;
+        stats.rays_hit += 1;
+        let walk = match f.occupied {
+            Some((lo, hi)) => intersect_box(o, inv_d, lo, hi)
+                .map(|(a, b)| (a.max(t_in), b.min(t_out)))
+                .filter(|(a, b)| a < b)?,
+            None => (t_in, t_out),
+        };
+        let walker = BlockWalker::new(o, d, walk.0, walk.1, f.block_size, f.block_counts).staying();
+        let xi = super::rng::pixel_sequence(f.seed, pixel.0, pixel.1, pass);
+        let lane = Lane {
+            o,
+            d,
+            view: -dir,
+            t0: t_in,
+            // No jitter offset: the stretches end at the exit.
+            t_end: t_out,
+            k0: 0,
+            k_end: 0,
+            last: None,
+        };
+        Some((
+            lane,
+            ImpLane {
+                walker,
+                tau: 0.0,
+                xi,
+            },
+        ))
+    }
+
     /// Renders pixels `x0..x0 + out.len()` (at most [`LANES`]) of row `y`
     /// for pass `pass`, adding premultiplied colour and opacity to `out`.
     pub fn row(
@@ -244,8 +360,16 @@ impl<T: Voxel> Packets<'_, T> {
     ) {
         debug_assert!(rays.len() <= LANES && out.len() == rays.len());
         let mut lanes = [None; LANES];
+        let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
         for (i, &r) in rays.iter().enumerate() {
-            lanes[i] = self.lane(r, (x0 + i as u32, y), pass, stats);
+            let pixel = (x0 + i as u32, y);
+            lanes[i] = match self.imp {
+                Some(_) => self.imp_lane(r, pixel, pass, stats).map(|(l, w)| {
+                    imp[i] = Some(w);
+                    l
+                }),
+                None => self.lane(r, pixel, pass, stats),
+            };
         }
         if lanes.iter().all(Option::is_none) {
             return;
@@ -258,27 +382,43 @@ impl<T: Voxel> Packets<'_, T> {
         // grid and `shades` for the shading.
         #[cfg(target_arch = "x86_64")]
         unsafe {
-            macro_rules! go {
+            // `importance`: no skipping (its pdf has no mass in empty
+            // blocks), the lanes' walks in `imp`.
+            macro_rules! imp {
                 ($f:ident) => {
-                    match (self.empty.is_some(), self.shading.is_some()) {
-                        (false, false) => avx2::$f::<T, false, false>(
-                            self, &lanes, &mut acc, &mut count, &mut alive,
+                    match self.shading.is_some() {
+                        false => avx2::$f::<T, false, false, true>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
                         ),
-                        (true, false) => avx2::$f::<T, true, false>(
-                            self, &lanes, &mut acc, &mut count, &mut alive,
-                        ),
-                        (false, true) => avx2::$f::<T, false, true>(
-                            self, &lanes, &mut acc, &mut count, &mut alive,
-                        ),
-                        (true, true) => avx2::$f::<T, true, true>(
-                            self, &lanes, &mut acc, &mut count, &mut alive,
+                        true => avx2::$f::<T, false, true, true>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
                         ),
                     }
                 };
             }
-            match self.level {
-                Level::Avx2 => go!(march_avx2),
-                Level::Avx512 => go!(march_avx512),
+            macro_rules! go {
+                ($f:ident) => {
+                    match (self.empty.is_some(), self.shading.is_some()) {
+                        (false, false) => avx2::$f::<T, false, false, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        (true, false) => avx2::$f::<T, true, false, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        (false, true) => avx2::$f::<T, false, true, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        (true, true) => avx2::$f::<T, true, true, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                    }
+                };
+            }
+            match (self.level, self.imp.is_some()) {
+                (Level::Avx2, false) => go!(march_avx2),
+                (Level::Avx512, false) => go!(march_avx512),
+                (Level::Avx2, true) => imp!(march_avx2),
+                (Level::Avx512, true) => imp!(march_avx512),
             }
         };
         let mut n = Counters::default();
@@ -341,7 +481,7 @@ impl<T: Voxel> Packets<'_, T> {
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Lane, Packets, LANES};
+    use super::{ImpLane, ImpState, Lane, Packets, LANES};
     use crate::volume::{Voxel, VoxelKind};
     use glam::Vec4;
     use std::arch::x86_64::*;
@@ -626,14 +766,20 @@ mod avx2 {
     /// `march_avx512` AVX-512 F and VL); the grid `fits`; the shading
     /// `shades`; for a u8 grid, `pk.z_pairs` is its z-paired copy.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn march_avx2<T: Voxel, const SKIP: bool, const SHADE: bool>(
+    pub(super) unsafe fn march_avx2<
+        T: Voxel,
+        const SKIP: bool,
+        const SHADE: bool,
+        const IMP: bool,
+    >(
         pk: &Packets<'_, T>,
         lanes: &[Option<Lane>; LANES],
+        imp: &mut [Option<ImpLane>; LANES],
         acc: &mut [Vec4; LANES],
         count: &mut [[u32; 2]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        march::<T, SKIP, SHADE>(pk, lanes, acc, count, alive)
+        march::<T, SKIP, SHADE, IMP>(pk, lanes, imp, acc, count, alive)
     }
 
     /// [`march_avx2`], compiled with AVX-512 F and VL as well (same lanes,
@@ -642,14 +788,20 @@ mod avx2 {
     /// # Safety
     /// As [`march_avx2`].
     #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
-    pub(super) unsafe fn march_avx512<T: Voxel, const SKIP: bool, const SHADE: bool>(
+    pub(super) unsafe fn march_avx512<
+        T: Voxel,
+        const SKIP: bool,
+        const SHADE: bool,
+        const IMP: bool,
+    >(
         pk: &Packets<'_, T>,
         lanes: &[Option<Lane>; LANES],
+        imp: &mut [Option<ImpLane>; LANES],
         acc: &mut [Vec4; LANES],
         count: &mut [[u32; 2]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        march::<T, SKIP, SHADE>(pk, lanes, acc, count, alive)
+        march::<T, SKIP, SHADE, IMP>(pk, lanes, imp, acc, count, alive)
     }
 
     /// The loop of both levels, inlined into each.
@@ -657,9 +809,10 @@ mod avx2 {
     /// # Safety
     /// As [`march_avx2`].
     #[inline(always)]
-    unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool>(
+    unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
         pk: &Packets<'_, T>,
         lanes: &[Option<Lane>; LANES],
+        imp: &mut [Option<ImpLane>; LANES],
         acc: &mut [Vec4; LANES],
         count: &mut [[u32; 2]; LANES],
         alive: &mut [bool; LANES],
@@ -716,7 +869,10 @@ mod avx2 {
         let one = _mm256_set1_ps(1.0);
         let top = _mm256_set1_ps((crate::transfer::LUT_SIZE - 1) as f32);
         let half = _mm256_set1_ps(0.5);
-        let q = pk.q.as_ptr() as *const f32;
+        let q = match (IMP, &pk.imp) {
+            (true, Some(ip)) => ip.tables.as_ptr() as *const f32,
+            _ => pk.q.as_ptr() as *const f32,
+        };
         let rgb = f.lut.entries().as_ptr() as *const f32;
         let (we, wa) = (
             _mm256_set1_ps(pk.weights.emission),
@@ -755,15 +911,73 @@ mod avx2 {
             _mm256_and_si256(_mm256_set1_epi32(live_bits), lane_bits),
             lane_bits,
         ));
+        let mut walked = zero;
         let (mut cr, mut cg, mut cb, mut ca) = (zero, zero, zero, zero);
         let mut cnt = _mm256_setzero_si256();
         let mut cnt_shaded = _mm256_setzero_si256();
+        // `importance`: each lane's position, spacing, stretch end and
+        // table offset; every lane starts by fetching its first stretch.
+        let mut is = ImpState::default();
+        let (mut tv, mut sv, mut tbv, mut offv) = (zero, one, zero, _mm256_setzero_si256());
+        if IMP {
+            is.tb = [f32::NEG_INFINITY; LANES];
+            tbv = load(is.tb);
+        }
         loop {
-            let act = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(kv, kend));
+            if IMP {
+                // Lanes past their stretch walk on to the next one (scalar).
+                let need = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_GE_OQ>(tv, tbv));
+                let bits = _mm256_movemask_ps(need);
+                if bits != 0 {
+                    let ip = pk.imp.as_ref().unwrap_unchecked();
+                    _mm256_storeu_ps(is.t.as_mut_ptr(), tv);
+                    _mm256_storeu_ps(is.s.as_mut_ptr(), sv);
+                    _mm256_storeu_ps(is.tb.as_mut_ptr(), tbv);
+                    _mm256_storeu_si256(is.off.as_mut_ptr() as *mut __m256i, offv);
+                    let mut dead = 0i32;
+                    for (i, l) in imp.iter_mut().enumerate() {
+                        if (bits >> i) & 1 == 0 {
+                            continue;
+                        }
+                        let l = l.as_mut().unwrap_unchecked();
+                        match ip.next(l, is.t[i], is.s[i], is.tb[i]) {
+                            Some((t, s, tb, j)) => {
+                                is.t[i] = t;
+                                is.s[i] = s;
+                                is.tb[i] = tb;
+                                is.off[i] = (j * crate::transfer::LUT_SIZE * 4) as i32;
+                            }
+                            None => dead |= 1 << i,
+                        }
+                    }
+                    tv = load(is.t);
+                    sv = load(is.s);
+                    tbv = load(is.tb);
+                    offv = _mm256_loadu_si256(is.off.as_ptr() as *const __m256i);
+                    // A lane whose walk ended is done, and not terminated.
+                    let ended = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+                        _mm256_and_si256(_mm256_set1_epi32(dead), lane_bits),
+                        lane_bits,
+                    ));
+                    live = _mm256_andnot_ps(ended, live);
+                    walked = _mm256_or_ps(walked, ended);
+                }
+            }
+            let act = if IMP {
+                live
+            } else {
+                _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(kv, kend))
+            };
             if _mm256_movemask_ps(act) == 0 {
                 break;
             }
-            let t = _mm256_add_ps(t0, _mm256_mul_ps(kv, st));
+            let t = if IMP {
+                let t = tv;
+                tv = _mm256_blendv_ps(tv, _mm256_add_ps(tv, sv), act);
+                t
+            } else {
+                _mm256_add_ps(t0, _mm256_mul_ps(kv, st))
+            };
             let p: V3 = [
                 _mm256_add_ps(o[0], _mm256_mul_ps(d[0], t)),
                 _mm256_add_ps(o[1], _mm256_mul_ps(d[1], t)),
@@ -805,7 +1019,9 @@ mod avx2 {
                     samp = _mm256_andnot_ps(skip, act);
                 }
             }
-            kv = _mm256_blendv_ps(kv, next, act);
+            if !IMP {
+                kv = _mm256_blendv_ps(kv, next, act);
+            }
             if _mm256_movemask_ps(samp) == 0 {
                 continue;
             }
@@ -817,8 +1033,12 @@ mod avx2 {
             let idx = _mm256_and_si256(_mm256_cvttps_epi32(x), _mm256_castps_si256(valid));
             let i4 = _mm256_slli_epi32::<2>(idx);
             // The eight table rows: loaded whole and transposed (cheaper
-            // than four gathers).
-            let [qr, qg, qb, al] = rows(q, i4);
+            // than four gathers); `importance` reads its lane's level.
+            let [qr, qg, qb, al] = if IMP {
+                rows(q, _mm256_add_epi32(i4, offv))
+            } else {
+                rows(q, i4)
+            };
             let (er, eg, eb);
             if SHADE {
                 // Transparent samples are culled before shading.
@@ -873,7 +1093,9 @@ mod avx2 {
         let mut c = [[0i32; LANES]; 2];
         _mm256_storeu_si256(c[0].as_mut_ptr() as *mut __m256i, cnt);
         _mm256_storeu_si256(c[1].as_mut_ptr() as *mut __m256i, cnt_shaded);
-        let l = _mm256_movemask_ps(live);
+        // Lanes whose `importance` walk ended count as alive (not
+        // terminated early).
+        let l = _mm256_movemask_ps(_mm256_or_ps(live, walked));
         for i in 0..LANES {
             acc[i] = Vec4::new(out[0][i], out[1][i], out[2][i], out[3][i]);
             count[i] = [c[0][i] as u32, c[1][i] as u32];

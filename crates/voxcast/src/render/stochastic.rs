@@ -26,9 +26,15 @@
 //!   estimate stays unbiased.
 //!
 //! `mc` needs its positions in order along the ray for front-to-back
-//! compositing; they are drawn already sorted, as descending order
-//! statistics `U₍ₙ₎ = V^{1/n}`, `U₍ₖ₎ = U₍ₖ₊₁₎·V^{1/k}` (Devroye 1986, V.3),
-//! so there is no buffer and no sort.
+//! compositing; they are drawn already sorted from exponential spacings
+//! (Devroye 1986, V.2): with `Eᵢ = −ln Uᵢ` and `Sₖ = E₁ + … + Eₖ`, the
+//! `Sₖ/Sₙ₊₁` are exactly the order statistics of `n` uniforms. The sum
+//! `Sₙ₊₁` is needed before the first position, so the spacings come in
+//! chunks of [`CHUNK`]: a chunk's `m` spacings are drawn, the rest of the
+//! sum, `Sₙ₊₁ − Sₘ`, is one Gamma(`n − m + 1`) variate (Marsaglia–Tsang),
+//! and the remaining points are uniform order statistics on `[U₍ₘ₎, 1)`.
+//! One `ln` per sample and a Gamma draw per chunk instead of a `powf` per
+//! sample; no sort, no heap.
 
 use super::march::BlockWalker;
 use super::ray::{Composite, Counters, Frame, Marcher, Sampler, Segment};
@@ -36,20 +42,61 @@ use super::rng::{splitmix, Rng};
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 
-/// `n` uniform numbers in [0, 1), produced in ascending order.
-struct SortedUniforms {
+/// Spacings [`SortedUniforms`] draws at a time (a Gamma draw per chunk).
+pub(super) const CHUNK: usize = 32;
+
+/// `n` uniform numbers in [0, 1), produced in ascending order: exactly the
+/// order statistics of `n` independent uniforms (see the module's doc).
+pub(super) struct SortedUniforms {
     rng: Rng,
+    /// Points not yet put in a chunk.
     left: u32,
-    cur: f32,
+    /// The last point of the previous chunk (0 before the first).
+    base: f32,
+    /// `(1 − base) / S`, S the chunk's spacings plus the rest's Gamma.
+    scale: f32,
+    /// Partial sums of the chunk's spacings.
+    sums: [f32; CHUNK],
+    /// Next index into `sums`, and the chunk's length.
+    i: usize,
+    m: usize,
 }
 
 impl SortedUniforms {
-    fn new(rng: Rng, n: u32) -> SortedUniforms {
+    pub(super) fn new(rng: Rng, n: u32) -> SortedUniforms {
         SortedUniforms {
             rng,
             left: n,
-            cur: 1.0,
+            base: 0.0,
+            scale: 0.0,
+            sums: [0.0; CHUNK],
+            i: 0,
+            m: 0,
         }
+    }
+
+    /// The next chunk: `m` partial sums of exponential spacings, and the
+    /// scale that maps them onto `[base, 1)`.
+    #[inline(never)]
+    fn refill(&mut self) {
+        let m = (self.left as usize).min(CHUNK);
+        let mut s = 0.0f32;
+        for x in &mut self.sums[..m] {
+            s -= self.rng.uniform_open0().ln();
+            *x = s;
+        }
+        // The sum of the spacings of the points after this chunk, plus the
+        // one after the last point: Gamma(left − m + 1).
+        let rest = self.left - m as u32 + 1;
+        let tail = if rest == 1 {
+            -self.rng.uniform_open0().ln()
+        } else {
+            gamma(&mut self.rng, rest as f32)
+        };
+        self.scale = (1.0 - self.base) / (s + tail);
+        self.left -= m as u32;
+        self.i = 0;
+        self.m = m;
     }
 }
 
@@ -57,12 +104,51 @@ impl Iterator for SortedUniforms {
     type Item = f32;
     #[inline(always)]
     fn next(&mut self) -> Option<f32> {
-        if self.left == 0 {
-            return None;
+        if self.i == self.m {
+            if self.left == 0 {
+                return None;
+            }
+            self.refill();
         }
-        self.cur *= self.rng.uniform_open0().powf(1.0 / self.left as f32);
-        self.left -= 1;
-        Some((1.0 - self.cur).clamp(0.0, 1.0 - f32::EPSILON))
+        let u = self.base + self.scale * self.sums[self.i];
+        self.i += 1;
+        if self.i == self.m {
+            // The next chunk's points lie above this one.
+            self.base = u;
+        }
+        Some(u.min(1.0 - f32::EPSILON))
+    }
+}
+
+/// A standard normal variate (Box–Muller).
+#[inline]
+fn normal(rng: &mut Rng) -> f32 {
+    let r = (-2.0 * rng.uniform_open0().ln()).sqrt();
+    r * (std::f32::consts::TAU * rng.uniform()).cos()
+}
+
+/// A Gamma(`a`, 1) variate for `a ≥ 1` (Marsaglia & Tsang 2000): `d·v` with
+/// `v = (1 + c·x)³`, x normal, accepted when `ln u < x²/2 + d − d·v +
+/// d·ln v`, written `d·(3·ln(1 + w) − 3w − 3w² − w³)` with `w = c·x` so that
+/// f32 keeps its accuracy for large `d`; the squeeze `u < 1 − 0.0331·x⁴`
+/// accepts most draws without a logarithm.
+pub(super) fn gamma(rng: &mut Rng, a: f32) -> f32 {
+    let d = a - 1.0 / 3.0;
+    let c = 1.0 / (9.0 * d).sqrt();
+    loop {
+        let x = normal(rng);
+        let w = c * x;
+        if w <= -1.0 {
+            continue;
+        }
+        let v = (1.0 + w) * (1.0 + w) * (1.0 + w);
+        let u = rng.uniform_open0();
+        let x2 = x * x;
+        if u < 1.0 - 0.0331 * x2 * x2
+            || u.ln() < 0.5 * x2 + d * (3.0 * w.ln_1p() - w * (3.0 + w * (3.0 + w)))
+        {
+            return d * v;
+        }
     }
 }
 
@@ -252,7 +338,7 @@ pub(super) const MAX_LEVEL: u8 = 5;
 /// Exponent of the `importance` pdf's extinction term: density
 /// `∝ σ_max^GAMMA` (1 would be proportional to the extinction bound; on the
 /// teapot and the lung CT 0.35 gave the best time to quality, see
-/// the sweep of the exponents in docs/monte-carlo.md, "Time to quality and equal time").
+/// docs/monte-carlo.md, "The `importance` pdf").
 pub(super) const GAMMA: f32 = 0.35;
 /// Exponent of its transmittance term: density `∝ T̂^BETA`, with `T̂ =
 /// exp(−∫σ̄)` the light expected to reach a block (σ̄ the blocks' mean
@@ -446,6 +532,125 @@ mod tests {
             count == 3
         }));
         assert_eq!(count, 3);
+    }
+
+    /// Kolmogorov–Smirnov distance of `xs` (mapped by the CDF under test, so
+    /// uniform when it fits) from the uniform distribution.
+    fn ks(mut xs: Vec<f64>) -> f64 {
+        xs.sort_by(f64::total_cmp);
+        let n = xs.len() as f64;
+        xs.iter()
+            .enumerate()
+            .map(|(i, &x)| (x - i as f64 / n).max((i + 1) as f64 / n - x))
+            .fold(0.0, f64::max)
+    }
+
+    /// KS bound at significance 10⁻⁴ (`√(ln(2·10⁴)/2) / √N`).
+    fn ks_bound(n: usize) -> f64 {
+        2.23 / (n as f64).sqrt()
+    }
+
+    #[test]
+    fn sorted_uniforms_are_sorted_uniform_order_statistics() {
+        let mut seed = 0;
+        for n in [1u32, 2, 7, 31, 32, 33, 64, 65, 100, 1000] {
+            let draws = (120_000 / n as usize).max(4_000);
+            // All the points pooled (the order statistics of iid uniforms,
+            // pooled, are iid uniforms), the smallest, the largest, and the
+            // gap across the first chunk boundary, each mapped to a
+            // uniform by its exact CDF: U₍₁₎ and U₍ₖ₊₁₎ − U₍ₖ₎ are Beta(1, n),
+            // U₍ₙ₎ is Beta(n, 1).
+            let (mut all, mut lo, mut hi, mut gap) = (vec![], vec![], vec![], vec![]);
+            // Mean and mean square of U₍ₖ₎ at k = CHUNK + 1 (Beta(k, n + 1 − k)).
+            let (mut m1, mut m2) = (0.0f64, 0.0f64);
+            let beta1n = |x: f32| 1.0 - (1.0 - x as f64).powi(n as i32);
+            for _ in 0..draws {
+                seed += 1;
+                let u: Vec<f32> = SortedUniforms::new(Rng::new(seed, 77), n).collect();
+                assert_eq!(u.len(), n as usize);
+                assert!(u.windows(2).all(|w| w[0] <= w[1]), "n {n}: not sorted");
+                assert!(u.iter().all(|x| (0.0..1.0).contains(x)), "n {n}: {u:?}");
+                all.extend(u.iter().map(|&x| x as f64));
+                lo.push(beta1n(u[0]));
+                hi.push((u[n as usize - 1] as f64).powi(n as i32));
+                if n as usize > CHUNK {
+                    gap.push(beta1n(u[CHUNK] - u[CHUNK - 1]));
+                    let x = u[CHUNK] as f64;
+                    m1 += x;
+                    m2 += x * x;
+                }
+            }
+            for (name, xs) in [("all", all), ("min", lo), ("max", hi), ("gap", gap)] {
+                if xs.is_empty() {
+                    continue;
+                }
+                let (d, bound) = (ks(xs.clone()), ks_bound(xs.len()));
+                assert!(d < bound, "n {n} {name}: KS {d:.5} ≥ {bound:.5}");
+            }
+            if n as usize > CHUNK {
+                let (k, n1) = ((CHUNK + 1) as f64, n as f64 + 1.0);
+                let mean = k / n1;
+                let var = k * (n1 - k) / (n1 * n1 * (n1 + 1.0));
+                let got = m1 / draws as f64;
+                let got_var = m2 / draws as f64 - got * got;
+                let se = (var / draws as f64).sqrt();
+                assert!((got - mean).abs() < 4.0 * se, "n {n}: mean {got} vs {mean}");
+                assert!(
+                    (got_var / var - 1.0).abs() < 0.1,
+                    "n {n}: var {got_var} vs {var}"
+                );
+            }
+        }
+        // The test can tell: points a little off uniform, or the chunk's
+        // spacings normalised by their own sum (the last point of every
+        // chunk at its end), fail it.
+        let xs: Vec<f64> = (0..20_000)
+            .map(|i| SortedUniforms::new(Rng::new(i, 78), 10).collect::<Vec<_>>())
+            .flat_map(|u| u.into_iter().map(|x| (x as f64).powf(1.03)))
+            .collect();
+        assert!(ks(xs.clone()) > ks_bound(xs.len()));
+        let xs: Vec<f64> = (0..20_000)
+            .flat_map(|i| {
+                let mut r = Rng::new(i, 79);
+                let mut s = 0.0;
+                let e: Vec<f64> = (0..10)
+                    .map(|_| {
+                        s -= (r.uniform_open0() as f64).ln();
+                        s
+                    })
+                    .collect();
+                e.into_iter().map(move |x| x / s)
+            })
+            .collect();
+        assert!(ks(xs.clone()) > ks_bound(xs.len()));
+    }
+
+    #[test]
+    fn gamma_moments() {
+        let mut rng = Rng::new(5, 6);
+        for a in [1.0f32, 2.0, 9.5, 33.0, 1000.0, 100_000.0] {
+            let n = 100_000;
+            let xs: Vec<f64> = (0..n).map(|_| gamma(&mut rng, a) as f64).collect();
+            let mean = xs.iter().sum::<f64>() / n as f64;
+            let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n as f64;
+            let skew =
+                xs.iter().map(|x| (x - mean).powi(3)).sum::<f64>() / n as f64 / var.powf(1.5);
+            let a = a as f64;
+            // Mean a, variance a, skewness 2/√a; standard errors √(a/n),
+            // ≈ a·√(2/n) and ≈ √(6/n).
+            assert!(
+                (mean - a).abs() < 4.0 * (a / n as f64).sqrt(),
+                "a {a}: mean {mean}"
+            );
+            assert!(
+                (var - a).abs() < 4.0 * a * (2.0 / n as f64).sqrt() * (1.0 + 3.0 / a),
+                "a {a}: var {var}"
+            );
+            assert!(
+                (skew - 2.0 / a.sqrt()).abs() < 4.0 * (6.0 / n as f64).sqrt() * (1.0 + 4.0 / a),
+                "a {a}: skew {skew}"
+            );
+        }
     }
 
     #[test]
