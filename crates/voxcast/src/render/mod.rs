@@ -531,7 +531,7 @@ impl Job<'_> {
         Vec3::from(self.params.background.map(srgb_to_linear))
     }
 
-    /// A fixed-step render through the SIMD ray packets (packet.rs), where
+    /// A fixed-step render through the SIMD ray packets (packet/), where
     /// the CPU and the render allow; `None` where the scalar loop must run.
     fn packets<T: Voxel>(
         &self,

@@ -21,7 +21,9 @@ use glam::Vec3;
 
 /// How the step level of a block is chosen: `j` in `step·2^j`, and the
 /// largest group of samples grouped reuse may share one value in (S0's
-/// groups of 1–3 are capped by it; `u32::MAX`: no cap).
+/// groups of 1–3 are capped by it; `u32::MAX`: no cap). Asked only for
+/// blocks that are not empty (those take the longest step), except by a
+/// `FIXED` rule.
 pub(in crate::render) trait Level: Sync {
     /// One level everywhere (no per-block choice).
     const FIXED: bool = false;
@@ -66,12 +68,9 @@ impl Level for Midpoint {
         st: &Steps<Self>,
         f: &Frame<'_, T>,
         seg: &Segment,
-        (b, ta, tb): (usize, f32, f32),
+        (_, ta, tb): (usize, f32, f32),
         n: &mut Counters,
     ) -> (i32, u32) {
-        if f.empty[b] {
-            return (st.level_hi, u32::MAX);
-        }
         let tm = 0.5 * (ta + tb);
         let g = f.grid.gradient(seg.o + seg.d * tm);
         n.interpolations += 6;
@@ -88,14 +87,11 @@ impl Level for BlockMax<'_> {
     fn level<T: Voxel>(
         &self,
         st: &Steps<Self>,
-        f: &Frame<'_, T>,
+        _: &Frame<'_, T>,
         seg: &Segment,
         (b, ta, tb): (usize, f32, f32),
         _: &mut Counters,
     ) -> (i32, u32) {
-        if f.empty[b] {
-            return (st.level_hi, u32::MAX);
-        }
         (st.level_of(self.0[b], seg.t_out, 0.5 * (ta + tb)), u32::MAX)
     }
 }
@@ -115,14 +111,11 @@ impl Level for Classified<'_> {
     fn level<T: Voxel>(
         &self,
         st: &Steps<Self>,
-        f: &Frame<'_, T>,
+        _: &Frame<'_, T>,
         seg: &Segment,
         (b, ta, tb): (usize, f32, f32),
         _: &mut Counters,
     ) -> (i32, u32) {
-        if f.empty[b] {
-            return (st.level_hi, u32::MAX);
-        }
         classified_level(
             self.0[b],
             st.k_ref,
@@ -262,7 +255,13 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
             if ta >= t_stop && pending.is_none() && run.is_none() {
                 break;
             }
-            let (j, cap) = self.rule.level(self, f, seg, (b, ta, tb), n);
+            // A block the transfer function makes transparent takes the
+            // longest step, whatever the rule.
+            let (j, cap) = if !L::FIXED && f.empty[b] {
+                (self.level_hi, u32::MAX)
+            } else {
+                self.rule.level(self, f, seg, (b, ta, tb), n)
+            };
             let li = (j - self.level_lo) as usize;
             let st = self.level_steps[li];
             let n0 = ((ta - seg.t0) / st).ceil().max(0.0);

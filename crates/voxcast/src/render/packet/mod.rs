@@ -1,0 +1,407 @@
+//! SIMD ray packets: eight neighbouring rays of a tile row marched in
+//! lock-step, one per lane of an AVX2 register, for the commonest render —
+//! a fixed step (`uniform`, `jitter`), trilinear, flat or Blinn–Phong
+//! shaded, front to back — and for `importance`, whose march is a fixed
+//! step per block: each lane walks its blocks in scalar code (once per
+//! block, for the block's pdf level) and the vector loop samples with its
+//! lane's spacing and reads its level's table.
+//!
+//! Each lane keeps its own ray: its sample grid `t₀ + k·s`, its first and
+//! last sample, and its accumulated colour and opacity; a lane mask drops
+//! the rays that have left the volume or terminated, and the packet ends
+//! when no lane is left. Per iteration the eight corner pairs of the
+//! trilinear fetch are four gathers (the +x neighbour comes in the same
+//! 32-bit load), the transfer-function lookup is four gathers from the
+//! premultiplied table, and compositing is plain vector arithmetic; shading
+//! adds the six trilinear fetches of the gradient, skipped when no lane's
+//! sample is visible. With
+//! empty-space skipping a lane whose sample falls in an empty block jumps
+//! to its first sample past that block (one gather of the block flags per
+//! iteration), so long empty stretches cost a lane one step per block.
+//!
+//! The arithmetic is the scalar path's, operation for operation (no fused
+//! multiply-adds where the scalar path has none), so a packet gives the
+//! scalar pixels to within the rounding of a few skipped-block boundaries.
+//! The last sample of a ray (its stretch ends at the volume's exit, not a
+//! full step) is composited by the scalar code, lane by lane.
+//!
+//! Dispatch is at run time ([`level`]): x86-64 with AVX2 and FMA runs the
+//! eight lanes compiled for AVX2, or where the CPU has AVX-512 F/VL the
+//! same lanes compiled for it (thirty-two registers: nothing spills); any
+//! other machine, or `RenderParams::simd = scalar`, takes the scalar loop,
+//! which stays the reference.
+
+use super::composite::Weights;
+use super::march::intersect_box;
+use super::optics::over_front;
+use super::ray::{Counters, Frame};
+use super::sample::{evaluate_premul, Flat, Phong};
+use super::shading::BlinnPhong;
+use super::stats::RenderStats;
+mod importance;
+
+use crate::transfer::LUT_SIZE;
+use crate::volume::Voxel;
+use glam::{Vec3, Vec4};
+pub(in crate::render) use importance::Imp;
+use importance::{ImpLane, ImpState};
+
+/// Lanes of a packet.
+pub(super) const LANES: usize = 8;
+
+/// The instruction set a packet is compiled for, picked at run time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Level {
+    /// AVX2 + FMA: eight lanes in 256-bit registers, sixteen of them.
+    Avx2,
+    /// The same eight lanes compiled with AVX-512 F/VL: thirty-two
+    /// registers (the loop's constants and lane state stay in registers
+    /// instead of spilling to the stack), masked blends.
+    Avx512,
+}
+
+impl Level {
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::Avx2 => "avx2",
+            Level::Avx512 => "avx512",
+        }
+    }
+}
+
+/// The packets' level on this CPU under `simd`, or `None` where the scalar
+/// loop runs (no AVX2 + FMA, not x86-64, or `Simd::Scalar`).
+pub fn level(simd: super::Simd) -> Option<Level> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use super::Simd;
+        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+        let avx512 =
+            std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl");
+        match simd {
+            Simd::Scalar => None,
+            _ if !avx2 => None,
+            Simd::Auto if avx512 => Some(Level::Avx512),
+            Simd::Auto | Simd::Avx2 => Some(Level::Avx2),
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = simd;
+        None
+    }
+}
+
+/// Whether the packets can fetch from grid `g`: 32-bit gather offsets, and
+/// a +x neighbour in every row (the pair fetch).
+pub(super) fn fits<T: Voxel>(g: &crate::volume::Grid<'_, T>) -> bool {
+    let (data, step, _, _) = g.layout();
+    let bytes = std::mem::size_of_val(data);
+    step[0] == 1 && bytes >= 4 && bytes < (i32::MAX as usize) / 2
+}
+
+/// The u8 layout the packets fetch from: per voxel `v(x, y, z)` and
+/// `v(x, y, z + 1)` in one `u16` (low byte first; the last slice pairs with
+/// itself), so one 32-bit gather at voxel `(x, y, z)` reads the four
+/// corners `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)` of a
+/// trilinear fetch — two gathers per fetch instead of four. Twice the
+/// volume's bytes, built once per renderer.
+pub(super) fn z_pairs(v: &[u8], dims: [usize; 3]) -> Vec<u16> {
+    let slice = dims[0] * dims[1];
+    let last = slice * (dims[2] - 1);
+    let mut out = Vec::with_capacity(v.len());
+    huge_pages(&mut out);
+    out.extend(v.iter().enumerate().map(|(i, &a)| {
+        let b = if i < last { v[i + slice] } else { a };
+        a as u16 | (b as u16) << 8
+    }));
+    out
+}
+
+/// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
+/// the lanes' fetches land on scattered slices, and with 4 KiB pages a
+/// volume of tens of MiB misses the TLB on most of them. A hint only (it
+/// does nothing where transparent huge pages are off).
+fn huge_pages<T>(v: &mut Vec<T>) {
+    #[cfg(target_os = "linux")]
+    {
+        const HUGE: usize = 2 << 20;
+        let start = v.as_mut_ptr() as usize;
+        let end = start + v.capacity() * std::mem::size_of::<T>();
+        let lo = start.next_multiple_of(HUGE);
+        let hi = end / HUGE * HUGE;
+        if hi > lo {
+            // SAFETY: [lo, hi) lies inside `v`'s allocation; MADV_HUGEPAGE
+            // changes how pages are backed, never their contents.
+            unsafe { libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_HUGEPAGE) };
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = v;
+}
+
+/// What every packet of a render shares.
+pub(super) struct Packets<'a, T> {
+    pub f: &'a Frame<'a, T>,
+    /// The premultiplied table of the step ([`crate::transfer::Lut::premultiplied`]).
+    pub q: &'a [[f32; 4]; LUT_SIZE],
+    /// The step in world units.
+    pub st: f32,
+    pub weights: Weights,
+    /// Early-termination threshold (∞ when off).
+    pub stop: f32,
+    /// Seed of the per-pixel start jitter.
+    pub jitter: Option<u64>,
+    /// Block emptiness as 32-bit flags (−1 empty), with skipping on.
+    pub empty: Option<&'a [i32]>,
+    /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
+    /// flat colour.
+    pub shading: Option<BlinnPhong>,
+    /// For u8 grids, the grid as [`z_pairs`] (empty for other types).
+    pub z_pairs: &'a [u16],
+    /// The instruction set ([`level`]).
+    pub level: Level,
+    /// `importance`'s pdf and levels, when the packets march it.
+    pub imp: Option<Imp<'a>>,
+}
+
+/// Whether the packets can shade with `bp`: the specular power is taken by
+/// repeated squaring, so the exponent must be a whole number (≤ 64).
+pub(super) fn shades(bp: &BlinnPhong) -> bool {
+    bp.shininess.fract() == 0.0 && (0.0..=64.0).contains(&bp.shininess)
+}
+
+/// One lane's ray, set up by the scalar code as [`super::trace::trace`]
+/// does.
+#[derive(Clone, Copy, Default)]
+struct Lane {
+    o: Vec3,
+    d: Vec3,
+    /// Towards the eye (world), for shading.
+    view: Vec3,
+    t0: f32,
+    /// Where the last sample's stretch ends (`Segment::t_end`).
+    t_end: f32,
+    /// Samples `k0..k_end` go through the vector loop.
+    k0: u32,
+    k_end: u32,
+    /// The last sample, composited with its stretch to `t_end`.
+    last: Option<u32>,
+}
+
+/// A lane's ray as [`super::trace::trace`] sets it up: origin and direction
+/// in voxel coordinates, entry and exit, and the stretch that meets blocks
+/// that are not empty.
+struct Setup {
+    o: Vec3,
+    d: Vec3,
+    t_in: f32,
+    t_out: f32,
+    walk: (f32, f32),
+}
+
+impl<T: Voxel> Packets<'_, T> {
+    /// Sets up the ray `(origin, unit direction)` in world units, counting
+    /// it; `None` when it misses the volume or meets only empty blocks.
+    fn setup(&self, (origin, dir): (Vec3, Vec3), stats: &mut RenderStats) -> Option<Setup> {
+        let f = self.f;
+        stats.rays += 1;
+        let o = (origin - f.origin_w) * f.inv_spacing;
+        let d = dir * f.inv_spacing;
+        let inv_d = Vec3::ONE / d;
+        let (t_in, t_out) = intersect_box(o, inv_d, f.box_lo, f.box_hi)?;
+        stats.rays_hit += 1;
+        let walk = match f.occupied {
+            Some((lo, hi)) => intersect_box(o, inv_d, lo, hi)
+                .map(|(a, b)| (a.max(t_in), b.min(t_out)))
+                .filter(|(a, b)| a < b)?,
+            None => (t_in, t_out),
+        };
+        Some(Setup {
+            o,
+            d,
+            t_in,
+            t_out,
+            walk,
+        })
+    }
+
+    /// Sets up the ray of pixel `pixel` (`ray`: world origin and unit
+    /// direction), or `None` when it meets nothing to sample.
+    fn lane(
+        &self,
+        ray: (Vec3, Vec3),
+        pixel: (u32, u32),
+        pass: u32,
+        stats: &mut RenderStats,
+    ) -> Option<Lane> {
+        let f = self.f;
+        let Setup {
+            o,
+            d,
+            t_in,
+            t_out,
+            walk,
+        } = self.setup(ray, stats)?;
+        let t0 = match self.jitter {
+            Some(seed) => t_in + super::rng::pixel_sequence(seed, pixel.0, pixel.1, pass) * f.step,
+            None => t_in,
+        };
+        let st = self.st;
+        let k0 = ((walk.0 - t0) / st).ceil().max(0.0) as u32;
+        let n1 = ((t_out - t0) / st).ceil().max(0.0) as u32;
+        // Past the walk's end every block is empty: nothing to sample.
+        let n_end = (((walk.1 - t0) / st).ceil().max(0.0) as u32).min(n1);
+        if n_end <= k0 {
+            return None;
+        }
+        let (k_end, last) = if n_end == n1 {
+            (n1 - 1, Some(n1 - 1))
+        } else {
+            (n_end, None)
+        };
+        Some(Lane {
+            o,
+            d,
+            view: -ray.1,
+            t0,
+            t_end: t_out + (t0 - t_in),
+            k0,
+            k_end,
+            last,
+        })
+    }
+
+    /// Renders pixels `x0..x0 + out.len()` (at most [`LANES`]) of row `y`
+    /// for pass `pass`, adding premultiplied colour and opacity to `out`.
+    pub fn row(
+        &self,
+        rays: &[(Vec3, Vec3)],
+        (x0, y): (u32, u32),
+        pass: u32,
+        out: &mut [Vec4],
+        stats: &mut RenderStats,
+    ) {
+        debug_assert!(rays.len() <= LANES && out.len() == rays.len());
+        let mut lanes = [None; LANES];
+        let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
+        for (i, &r) in rays.iter().enumerate() {
+            let pixel = (x0 + i as u32, y);
+            lanes[i] = match self.imp {
+                Some(_) => self.imp_lane(r, pixel, pass, stats).map(|(l, w)| {
+                    imp[i] = Some(w);
+                    l
+                }),
+                None => self.lane(r, pixel, pass, stats),
+            };
+        }
+        if lanes.iter().all(Option::is_none) {
+            return;
+        }
+        let mut acc = [Vec4::ZERO; LANES];
+        let mut count = [[0u32; 2]; LANES];
+        let mut alive = [false; LANES];
+        // SAFETY: `level` checked the CPU before any packet was made (the
+        // only caller, `Job::packets`, takes it from there), `fits` for the
+        // grid and `shades` for the shading.
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            // `importance`: no skipping (its pdf has no mass in empty
+            // blocks), the lanes' walks in `imp`.
+            macro_rules! imp {
+                ($f:ident) => {
+                    match self.shading.is_some() {
+                        false => avx2::$f::<T, false, false, true>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        true => avx2::$f::<T, false, true, true>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                    }
+                };
+            }
+            macro_rules! go {
+                ($f:ident) => {
+                    match (self.empty.is_some(), self.shading.is_some()) {
+                        (false, false) => avx2::$f::<T, false, false, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        (true, false) => avx2::$f::<T, true, false, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        (false, true) => avx2::$f::<T, false, true, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                        (true, true) => avx2::$f::<T, true, true, false>(
+                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
+                        ),
+                    }
+                };
+            }
+            match (self.level, self.imp.is_some()) {
+                (Level::Avx2, false) => go!(march_avx2),
+                (Level::Avx512, false) => go!(march_avx512),
+                (Level::Avx2, true) => imp!(march_avx2),
+                (Level::Avx512, true) => imp!(march_avx512),
+            }
+        };
+        let mut n = Counters::default();
+        for i in 0..rays.len() {
+            let Some(l) = lanes[i] else { continue };
+            let (mut c, mut a) = (acc[i].truncate(), acc[i].w);
+            let mut terminated = !alive[i];
+            if let (Some(k), false) = (l.last, terminated) {
+                terminated = self.last(&l, k, &mut c, &mut a, &mut n);
+            }
+            n.samples += count[i][0] as u64;
+            n.interpolations += count[i][0] as u64;
+            n.shaded += count[i][1] as u64;
+            stats.early_terminated += terminated as u64;
+            out[i] += c.extend(a);
+        }
+        stats.samples += n.samples;
+        stats.interpolations += n.interpolations;
+        stats.gradient_interpolations += 6 * n.shaded;
+    }
+
+    /// The last sample of lane `l` (index `k`), composited over its
+    /// stretch to the exit as the scalar march does; true when it ends
+    /// the ray.
+    fn last(&self, l: &Lane, k: u32, c: &mut Vec3, a: &mut f32, n: &mut Counters) -> bool {
+        let f = self.f;
+        let t = l.t0 + k as f32 * self.st;
+        let p = l.o + l.d * t;
+        // Skipped, and not counted, in an empty block (as the block walk
+        // does).
+        if self.empty.is_some() && f.in_empty_block(p.max(Vec3::ZERO)) {
+            return false;
+        }
+        n.samples += 1;
+        let sample = match self.shading {
+            Some(bp) => evaluate_premul(f, &Phong(bp), self.q, p, l.view, n),
+            None => evaluate_premul(f, &Flat, self.q, p, l.view, n),
+        };
+        let Some((e, pa, entry)) = sample else {
+            return false;
+        };
+        if pa <= 0.0 {
+            return false;
+        }
+        let ds = l.t_end.max(t) - t;
+        let alpha = 1.0 - (-f.lut.sigma(entry) * ds / f.unit).exp();
+        if alpha <= 0.0 {
+            return false;
+        }
+        let e = e * (alpha / pa);
+        over_front(
+            c,
+            a,
+            e * self.weights.emission,
+            alpha * self.weights.absorption,
+        );
+        *a >= self.stop
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod avx2;
