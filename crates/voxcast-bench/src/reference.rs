@@ -246,12 +246,15 @@ mod tests {
         let VoxelData::U16(mut v) = a else {
             unreachable!()
         };
-        v[n - 1] ^= 1;
+        v.make_mut()[n - 1] ^= 1;
         assert_ne!(voxel_hash(&VoxelData::U16(v)), h1);
         // The same bytes as another type differ (the type is in the key, but
         // the data alone differs too in length).
-        let b = VoxelData::U8(vec![1, 2, 3]);
-        assert_ne!(voxel_hash(&b), voxel_hash(&VoxelData::U8(vec![1, 2, 4])));
+        let b = VoxelData::U8(vec![1, 2, 3].into());
+        assert_ne!(
+            voxel_hash(&b),
+            voxel_hash(&VoxelData::U8(vec![1, 2, 4].into()))
+        );
     }
 
     #[test]
@@ -292,7 +295,13 @@ mod tests {
         let v = &prepared.volume;
         let mut data: Vec<f32> = (0..v.len()).map(|i| v.data().get(i)).collect();
         data[v.len() / 2] += 0.25;
-        let edited = Volume::new(v.dims(), v.spacing(), v.origin(), VoxelData::F32(data)).unwrap();
+        let edited = Volume::new(
+            v.dims(),
+            v.spacing(),
+            v.origin(),
+            VoxelData::F32(data.into()),
+        )
+        .unwrap();
         let p = Prepared {
             volume: edited,
             tf: prepared.tf.clone(),

@@ -22,7 +22,7 @@ pub(crate) fn texels(
     match volume.data() {
         // r8unorm stores v/255.
         VoxelData::U8(d) => (
-            d.clone(),
+            d.to_vec(),
             wgpu::TextureFormat::R8Unorm,
             scale * 255.0,
             offset,

@@ -142,7 +142,7 @@ fn i16_within_half_range_uses_r16float() {
         dims,
         glam::Vec3::new(1.0, 1.0, 1.5),
         glam::Vec3::ZERO,
-        voxcast::VoxelData::I16(data),
+        voxcast::VoxelData::I16(data.into()),
     )
     .unwrap();
     let tf = voxcast::transfer::TransferFunction::preset("fire").unwrap();

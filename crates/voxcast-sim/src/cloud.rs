@@ -571,7 +571,12 @@ impl CloudSim {
                     }
                 }
             });
-        let mut vol = Volume::new([nx, ny, nz], Vec3::ONE, Vec3::ZERO, VoxelData::F32(data))?;
+        let mut vol = Volume::new(
+            [nx, ny, nz],
+            Vec3::ONE,
+            Vec3::ZERO,
+            VoxelData::F32(data.into()),
+        )?;
         vol.name = Some("density".into());
         Ok(vol)
     }

@@ -341,7 +341,13 @@ mod tests {
         vals.extend(std::iter::repeat_n(5.0, 90));
         vals.extend(std::iter::repeat_n(9.5, 9));
         vals.push(20.0);
-        let v = Volume::new([1000, 1, 1], Vec3::ONE, Vec3::ZERO, VoxelData::F32(vals)).unwrap();
+        let v = Volume::new(
+            [1000, 1, 1],
+            Vec3::ONE,
+            Vec3::ZERO,
+            VoxelData::F32(vals.into()),
+        )
+        .unwrap();
         let h = LogHistogram::new(&v, [0.0, 10.0], 10);
         assert_eq!(h.counts[0], 900);
         assert_eq!(h.counts[5], 90);

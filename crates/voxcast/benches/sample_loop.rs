@@ -126,7 +126,7 @@ fn marschner_lobb_u8(n: usize) -> Volume {
                 }
             }
         });
-    Volume::new([n; 3], Vec3::ONE, Vec3::ZERO, VoxelData::U8(data)).unwrap()
+    Volume::new([n; 3], Vec3::ONE, Vec3::ZERO, VoxelData::U8(data.into())).unwrap()
 }
 
 /// The bare ray loop: per pixel, the camera ray clipped to the sample box,

@@ -65,7 +65,7 @@ fn to_u8(n: usize, f: impl Fn(Vec3) -> f32 + Sync) -> Result<Volume> {
             (f(p).clamp(0.0, 1.0) * 255.0 + 0.5) as u8
         })
         .collect();
-    Volume::new([n, n, n], Vec3::ONE, Vec3::ZERO, VoxelData::U8(data))
+    Volume::new([n, n, n], Vec3::ONE, Vec3::ZERO, VoxelData::U8(data.into()))
 }
 
 fn demo(n: usize) -> Result<Volume> {
@@ -171,7 +171,7 @@ fn plume(dims: [usize; 3]) -> Result<Volume> {
             d * smoothstep(0.0, 0.05, h) * (1.0 - smoothstep(0.96, 1.0, h))
         })
         .collect();
-    Volume::new(dims, Vec3::ONE, Vec3::ZERO, VoxelData::F32(data))
+    Volume::new(dims, Vec3::ONE, Vec3::ZERO, VoxelData::F32(data.into()))
 }
 
 #[cfg(test)]

@@ -432,7 +432,7 @@ fn exercise_geometry(g: &Geometry) -> String {
 /// A small volume with a ramp of values, standing in for the scene's input.
 fn tiny_volume() -> Volume {
     let data: Vec<u8> = (0..64u32).map(|i| (i * 4) as u8).collect();
-    Volume::new([4, 4, 4], Vec3::ONE, Vec3::ZERO, VoxelData::U8(data))
+    Volume::new([4, 4, 4], Vec3::ONE, Vec3::ZERO, VoxelData::U8(data.into()))
         .expect("a 4×4×4 volume with 64 voxels")
 }
 

@@ -46,6 +46,15 @@ impl Image {
             .collect()
     }
 
+    /// The image as the bytes of an 8-bit sRGB PNG, as [`Image::write_png`]
+    /// writes them (for notebooks and in-memory use).
+    pub fn png_bytes(&self) -> Result<Vec<u8>> {
+        let mut v = Vec::new();
+        self.encode_png(&mut v)
+            .map_err(|e| Error::invalid(format!("cannot encode the image as PNG: {e}")))?;
+        Ok(v)
+    }
+
     /// Encodes an 8-bit sRGB PNG (RGB) into `w`.
     fn encode_png(&self, w: &mut impl Write) -> std::io::Result<()> {
         let data = self.to_srgb8();

@@ -166,7 +166,7 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
         make(VoxelData::I16(
             f.iter().map(|v| (v * 30000.0 - 1000.0) as i16).collect(),
         )),
-        make(VoxelData::F32(f.clone())),
+        make(VoxelData::F32(f.clone().into())),
     ]
 }
 
@@ -285,7 +285,7 @@ fn packets_handle_thin_volumes() {
         for data in [
             VoxelData::U8(v.iter().map(|x| (x * 255.0) as u8).collect()),
             VoxelData::U16(v.iter().map(|x| (x * 4000.0) as u16).collect()),
-            VoxelData::F32(v.clone()),
+            VoxelData::F32(v.clone().into()),
         ] {
             let vol = voxcast::Volume::new(dims, s, glam::Vec3::ZERO, data).unwrap();
             let st = vol.stats();

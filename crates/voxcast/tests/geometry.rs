@@ -23,7 +23,7 @@ fn slab() -> Volume {
         [8, 8, 8],
         Vec3::ONE,
         Vec3::ZERO,
-        VoxelData::F32(vec![0.7; 512]),
+        VoxelData::F32(vec![0.7; 512].into()),
     )
     .unwrap()
 }

@@ -160,7 +160,7 @@ fn grouped_interpolation_count_follows_the_group_formula() {
         [8, 8, 8],
         Vec3::ONE,
         Vec3::ZERO,
-        VoxelData::F32(vec![0.5; 512]),
+        VoxelData::F32(vec![0.5; 512].into()),
     )
     .unwrap();
     let tf = TransferFunction {

@@ -54,7 +54,7 @@ fn homogeneous_slab_matches_beer_lambert() {
         dims,
         Vec3::new(1.0, 0.8, 1.2),
         Vec3::new(3.0, -2.0, 5.0),
-        VoxelData::F32(vec![0.7; 9 * 38 * 9]),
+        VoxelData::F32(vec![0.7; 9 * 38 * 9].into()),
     )
     .unwrap();
     let (gray, alpha) = (0.5f32, 0.05f32);
@@ -235,14 +235,14 @@ fn nan_voxels_are_empty() {
     let mut v = vec![0.5f32; 8 * 8 * 8];
     v[0] = f32::NAN;
     v[5] = f32::INFINITY;
-    let nan_vol = Volume::new([8, 8, 8], Vec3::ONE, Vec3::ZERO, VoxelData::F32(v)).unwrap();
+    let nan_vol = Volume::new([8, 8, 8], Vec3::ONE, Vec3::ZERO, VoxelData::F32(v.into())).unwrap();
     assert_eq!(nan_vol.stats().nan, 1);
     assert_eq!(nan_vol.stats().inf, 1);
     let all_nan = Volume::new(
         [4, 4, 4],
         Vec3::ONE,
         Vec3::ZERO,
-        VoxelData::F32(vec![f32::NAN; 64]),
+        VoxelData::F32(vec![f32::NAN; 64].into()),
     )
     .unwrap();
     let tf = constant_tf(1.0, 0.9);

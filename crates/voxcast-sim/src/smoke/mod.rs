@@ -357,7 +357,7 @@ impl Smoke {
             self.dims,
             Vec3::splat(self.h),
             Vec3::ZERO,
-            VoxelData::F32(self.density.clone()),
+            VoxelData::F32(self.density.clone().into()),
         )?;
         v.name = Some("smoke density".into());
         v.time = Some(self.time);

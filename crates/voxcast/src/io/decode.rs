@@ -126,7 +126,7 @@ pub(crate) fn decode(ty: StoredType, bytes: Vec<u8>, big_endian: bool) -> VoxelD
         };
     }
     match ty {
-        StoredType::U8 => VoxelData::U8(bytes),
+        StoredType::U8 => VoxelData::U8(bytes.into()),
         StoredType::I8 => VoxelData::I16(bytes.iter().map(|&b| i16::from(b as i8)).collect()),
         StoredType::I16 | StoredType::U16 | StoredType::F32 => {
             VoxelData::from_bytes(ty.target(), &bytes, big_endian)
@@ -167,7 +167,7 @@ pub(crate) fn read_bytes(
     field: &str,
 ) -> Result<Vec<u8>> {
     match read_payload(path, offset, n_bytes, ScalarType::U8, false, gzip, field)? {
-        VoxelData::U8(b) => Ok(b),
+        VoxelData::U8(b) => Ok(b.into_vec()),
         other => Err(Error::format(
             path,
             field,
@@ -266,7 +266,7 @@ pub(crate) fn parse_ascii(
             for i in 0..count {
                 v.push(next(i)? as $t);
             }
-            VoxelData::$var(v)
+            VoxelData::$var(v.into())
         }};
     }
     let data = match ty.target() {
@@ -299,10 +299,10 @@ pub(crate) fn concat(parts: Vec<VoxelData>) -> Option<VoxelData> {
     let mut all = it.next()?;
     for part in it {
         match (&mut all, part) {
-            (VoxelData::U8(a), VoxelData::U8(b)) => a.extend(b),
-            (VoxelData::U16(a), VoxelData::U16(b)) => a.extend(b),
-            (VoxelData::I16(a), VoxelData::I16(b)) => a.extend(b),
-            (VoxelData::F32(a), VoxelData::F32(b)) => a.extend(b),
+            (VoxelData::U8(a), VoxelData::U8(b)) => a.make_mut().extend(b.iter()),
+            (VoxelData::U16(a), VoxelData::U16(b)) => a.make_mut().extend(b.iter()),
+            (VoxelData::I16(a), VoxelData::I16(b)) => a.make_mut().extend(b.iter()),
+            (VoxelData::F32(a), VoxelData::F32(b)) => a.make_mut().extend(b.iter()),
             _ => return None,
         }
     }

@@ -99,10 +99,10 @@ pub fn read(path: &Path) -> Result<Volume> {
 
     // Pass 2: decode every file into its own run of slices, in parallel.
     let data = match ty {
-        ScalarType::U8 => VoxelData::U8(decode_all(&sources, n, plane)?),
-        ScalarType::U16 => VoxelData::U16(decode_all(&sources, n, plane)?),
-        ScalarType::I16 => VoxelData::I16(decode_all(&sources, n, plane)?),
-        ScalarType::F32 => VoxelData::F32(decode_all(&sources, n, plane)?),
+        ScalarType::U8 => VoxelData::U8(decode_all(&sources, n, plane)?.into()),
+        ScalarType::U16 => VoxelData::U16(decode_all(&sources, n, plane)?.into()),
+        ScalarType::I16 => VoxelData::I16(decode_all(&sources, n, plane)?.into()),
+        ScalarType::F32 => VoxelData::F32(decode_all(&sources, n, plane)?.into()),
     };
     Volume::new(
         [w as usize, h as usize, nz as usize],
@@ -662,7 +662,7 @@ mod tests {
         );
         let v = read(&dir.path().join("g16.png")).unwrap();
         assert_eq!(v.scalar_type(), ScalarType::U16);
-        assert_eq!(v.data(), &VoxelData::U16(vals.to_vec()));
+        assert_eq!(v.data(), &VoxelData::U16(vals.to_vec().into()));
         // RGB: Rec. 709 luminance.
         let rgb = [255, 0, 0, 0, 255, 0, 0, 0, 255, 100, 100, 100];
         write_png(
@@ -674,7 +674,7 @@ mod tests {
             &rgb,
         );
         let v = read(&dir.path().join("rgb.png")).unwrap();
-        assert_eq!(v.data(), &VoxelData::U8(vec![54, 182, 18, 100]));
+        assert_eq!(v.data(), &VoxelData::U8(vec![54, 182, 18, 100].into()));
         // Palette (2-bit indices 0..3 → black, red, green, white).
         write_png(
             &dir.path().join("pal.png"),
@@ -685,7 +685,7 @@ mod tests {
             &[0b00_01_10_11],
         );
         let v = read(&dir.path().join("pal.png")).unwrap();
-        assert_eq!(v.data(), &VoxelData::U8(vec![0, 54, 182, 255]));
+        assert_eq!(v.data(), &VoxelData::U8(vec![0, 54, 182, 255].into()));
         // Gray + alpha: alpha ignored.
         write_png(
             &dir.path().join("ga.png"),
@@ -697,7 +697,7 @@ mod tests {
         );
         assert_eq!(
             read(&dir.path().join("ga.png")).unwrap().data(),
-            &VoxelData::U8(vec![7, 9])
+            &VoxelData::U8(vec![7, 9].into())
         );
     }
 
@@ -724,33 +724,33 @@ mod tests {
         write_tiff::<Gray8>(&d.join("a.tif"), 2, 2, &[&[1, 2, 3, 4]]);
         assert_eq!(
             read(&d.join("a.tif")).unwrap().data(),
-            &VoxelData::U8(vec![1, 2, 3, 4])
+            &VoxelData::U8(vec![1, 2, 3, 4].into())
         );
         write_tiff::<Gray16>(&d.join("b.tiff"), 2, 1, &[&[300, 65000]]);
         assert_eq!(
             read(&d.join("b.tiff")).unwrap().data(),
-            &VoxelData::U16(vec![300, 65000])
+            &VoxelData::U16(vec![300, 65000].into())
         );
         write_tiff::<GrayI16>(&d.join("c.tif"), 2, 1, &[&[-300, 1200]]);
         assert_eq!(
             read(&d.join("c.tif")).unwrap().data(),
-            &VoxelData::I16(vec![-300, 1200])
+            &VoxelData::I16(vec![-300, 1200].into())
         );
         write_tiff::<Gray32Float>(&d.join("f.tif"), 2, 1, &[&[-1.5, f32::MAX]]);
         assert_eq!(
             read(&d.join("f.tif")).unwrap().data(),
-            &VoxelData::F32(vec![-1.5, f32::MAX])
+            &VoxelData::F32(vec![-1.5, f32::MAX].into())
         );
         write_tiff::<RGB8>(&d.join("rgb.tif"), 2, 1, &[&[255, 0, 0, 100, 100, 100]]);
         assert_eq!(
             read(&d.join("rgb.tif")).unwrap().data(),
-            &VoxelData::U8(vec![54, 100])
+            &VoxelData::U8(vec![54, 100].into())
         );
         // Multi-page: every page is a slice.
         write_tiff::<Gray16>(&d.join("m.tif"), 2, 1, &[&[1, 2], &[3, 4], &[5, 6]]);
         let v = read(&d.join("m.tif")).unwrap();
         assert_eq!(v.dims(), [2, 1, 3]);
-        assert_eq!(v.data(), &VoxelData::U16(vec![1, 2, 3, 4, 5, 6]));
+        assert_eq!(v.data(), &VoxelData::U16(vec![1, 2, 3, 4, 5, 6].into()));
         // A folder of multi-page files: pages of the first, then the second.
         let sub = d.join("pages");
         std::fs::create_dir(&sub).unwrap();
@@ -759,7 +759,7 @@ mod tests {
         write_tiff::<Gray8>(&sub.join("p10.tif"), 1, 1, &[&[4], &[5]]);
         assert_eq!(
             read(&sub).unwrap().data(),
-            &VoxelData::U8(vec![1, 2, 3, 4, 5])
+            &VoxelData::U8(vec![1, 2, 3, 4, 5].into())
         );
     }
 

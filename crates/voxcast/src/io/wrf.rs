@@ -326,7 +326,7 @@ mod imp {
             [nx, ny, nz_out],
             Vec3::new(dx, dy, dz),
             Vec3::new(0.0, 0.0, bottom),
-            VoxelData::F32(out),
+            VoxelData::F32(out.into()),
         )?;
         vol.name = Some(spec);
         vol.units = Some("kg/kg".into());

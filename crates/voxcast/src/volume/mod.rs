@@ -4,9 +4,11 @@
 
 mod grid;
 mod stats;
+mod voxels;
 
 pub use grid::{Grid, GridVisitor, Voxel, VoxelKind};
 pub use stats::{Histogram, ValueStats};
+pub use voxels::Voxels;
 
 use crate::error::{Error, Result};
 use glam::Vec3;
@@ -63,10 +65,10 @@ impl std::fmt::Display for ScalarType {
 /// The voxel values, in their stored type, x fastest, then y, then z.
 #[derive(Clone, Debug, PartialEq)]
 pub enum VoxelData {
-    U8(Vec<u8>),
-    U16(Vec<u16>),
-    I16(Vec<i16>),
-    F32(Vec<f32>),
+    U8(Voxels<u8>),
+    U16(Voxels<u16>),
+    I16(Voxels<i16>),
+    F32(Voxels<f32>),
 }
 
 impl VoxelData {
@@ -92,6 +94,17 @@ impl VoxelData {
             VoxelData::U16(_) => ScalarType::U16,
             VoxelData::I16(_) => ScalarType::I16,
             VoxelData::F32(_) => ScalarType::F32,
+        }
+    }
+
+    /// The same values behind an `Arc` ([`Voxels::into_shared`]): clones
+    /// share them instead of copying.
+    pub fn into_shared(self) -> VoxelData {
+        match self {
+            VoxelData::U8(v) => VoxelData::U8(v.into_shared()),
+            VoxelData::U16(v) => VoxelData::U16(v.into_shared()),
+            VoxelData::I16(v) => VoxelData::I16(v.into_shared()),
+            VoxelData::F32(v) => VoxelData::F32(v.into_shared()),
         }
     }
 
@@ -121,11 +134,11 @@ impl VoxelData {
                         }
                     })
                     .collect();
-                VoxelData::$var(v)
+                VoxelData::$var(v.into())
             }};
         }
         match ty {
-            ScalarType::U8 => VoxelData::U8(bytes.to_vec()),
+            ScalarType::U8 => VoxelData::U8(bytes.to_vec().into()),
             ScalarType::U16 => conv!(u16, 2, U16),
             ScalarType::I16 => conv!(i16, 2, I16),
             ScalarType::F32 => conv!(f32, 4, F32),
@@ -146,10 +159,20 @@ impl VoxelData {
                     |a, b| (a.0.min(b.0), a.1.max(b.1)),
                 );
                 if lo >= i16::MIN as f64 && hi <= i16::MAX as f64 {
-                    return VoxelData::I16(v.par_iter().map(|&x| f(x) as i16).collect());
+                    return VoxelData::I16(
+                        v.par_iter()
+                            .map(|&x| f(x) as i16)
+                            .collect::<Vec<_>>()
+                            .into(),
+                    );
                 }
             }
-            VoxelData::F32(v.par_iter().map(|&x| f(x) as f32).collect())
+            VoxelData::F32(
+                v.par_iter()
+                    .map(|&x| f(x) as f32)
+                    .collect::<Vec<_>>()
+                    .into(),
+            )
         }
         if slope == 1.0 && intercept == 0.0 {
             return self;
@@ -163,7 +186,8 @@ impl VoxelData {
                 VoxelData::F32(
                     v.par_iter()
                         .map(|&x| (x as f64 * slope + intercept) as f32)
-                        .collect(),
+                        .collect::<Vec<_>>()
+                        .into(),
                 )
             }
         }
@@ -275,7 +299,14 @@ impl Volume {
                 }
             }
         }
-        Volume::new(dims, spacing, Vec3::ZERO, VoxelData::F32(v))
+        Volume::new(dims, spacing, Vec3::ZERO, VoxelData::F32(v.into()))
+    }
+
+    /// The same volume with its voxels shared between clones
+    /// ([`VoxelData::into_shared`]): cloning it then costs no copy.
+    pub fn into_shared(mut self) -> Volume {
+        self.data = self.data.into_shared();
+        self
     }
 
     /// Grid size (x, y, z).

@@ -68,10 +68,10 @@ pub(crate) fn assemble(g: &Group, z_spacing: f64) -> Result<Volume> {
     let per_slice = (nx * ny) as usize;
 
     let data = match ty {
-        ScalarType::U8 => VoxelData::U8(decode_all(g, n, per_slice, |v| v as u8)?),
-        ScalarType::U16 => VoxelData::U16(decode_all(g, n, per_slice, |v| v as u16)?),
-        ScalarType::I16 => VoxelData::I16(decode_all(g, n, per_slice, |v| v as i16)?),
-        ScalarType::F32 => VoxelData::F32(decode_all(g, n, per_slice, |v| v as f32)?),
+        ScalarType::U8 => VoxelData::U8(decode_all(g, n, per_slice, |v| v as u8)?.into()),
+        ScalarType::U16 => VoxelData::U16(decode_all(g, n, per_slice, |v| v as u16)?.into()),
+        ScalarType::I16 => VoxelData::I16(decode_all(g, n, per_slice, |v| v as i16)?.into()),
+        ScalarType::F32 => VoxelData::F32(decode_all(g, n, per_slice, |v| v as f32)?.into()),
     };
 
     let f0 = &g.slices[0].frame;
@@ -89,7 +89,7 @@ pub(crate) fn assemble(g: &Group, z_spacing: f64) -> Result<Volume> {
                 out.push((data.get(i) as f64 * s.frame.slope + s.frame.intercept) as f32);
             }
         }
-        VoxelData::F32(out)
+        VoxelData::F32(out.into())
     };
 
     let mut vol = Volume::new(

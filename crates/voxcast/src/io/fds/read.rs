@@ -123,7 +123,7 @@ fn mesh_volume(
     let h = m.cell_size();
     let origin = m.origin() + Vec3::new(bounds[0] as f32, bounds[2] as f32, bounds[4] as f32) * h;
     let dims = [0, 1, 2].map(|a| bounds[2 * a + 1] - bounds[2 * a] + 1);
-    Volume::new(dims, h, origin, VoxelData::F32(data))
+    Volume::new(dims, h, origin, VoxelData::F32(data.into()))
 }
 
 /// Reads one quantity at one time from the FDS case indexed by the `.smv`

@@ -152,7 +152,7 @@ fn gzip_reads_the_same_and_goes_through_open() {
     let v = crate::io::open(&p, &Default::default()).unwrap();
     assert_eq!(v.dims(), [4, 3, 2]);
     assert_eq!(v.scalar_type(), ScalarType::I16);
-    assert_eq!(v.data(), &VoxelData::I16(vals));
+    assert_eq!(v.data(), &VoxelData::I16(vals.into()));
 }
 
 #[test]
@@ -214,7 +214,11 @@ fn scaling_is_applied() {
             false,
         );
         let v = read(&p).unwrap();
-        assert_eq!(v.data(), &VoxelData::U16(vals.clone()), "{slope} {inter}");
+        assert_eq!(
+            v.data(),
+            &VoxelData::U16(vals.clone().into()),
+            "{slope} {inter}"
+        );
     }
 }
 
@@ -237,7 +241,7 @@ fn big_endian_file() {
     );
     let v = read(&p).unwrap();
     assert_eq!(v.spacing(), Vec3::new(0.5, 0.75, 2.0));
-    assert_eq!(v.data(), &VoxelData::F32(vals));
+    assert_eq!(v.data(), &VoxelData::F32(vals.into()));
 }
 
 #[test]

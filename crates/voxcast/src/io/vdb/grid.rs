@@ -187,7 +187,7 @@ pub(super) fn to_volume(
         (lo[1] as f64 * grid.scale[1] + grid.translation[1]) as f32,
         (lo[2] as f64 * grid.scale[2] + grid.translation[2]) as f32,
     );
-    let mut vol = Volume::new(d, spacing, origin, VoxelData::F32(data))
+    let mut vol = Volume::new(d, spacing, origin, VoxelData::F32(data.into()))
         .map_err(|e| Error::format(path, "grid", e.to_string()))?;
     vol.active_voxels = Some(active);
     vol.name = Some(name);
