@@ -38,7 +38,15 @@ fn detached<T: Send>(
     };
     let (joined, raised) = py.detach(|| {
         std::thread::scope(|s| {
-            let worker = s.spawn(|| work(&report, &cancel));
+            // The worker wakes this thread when it ends, so no render waits
+            // out the rest of a poll interval.
+            let waiter = std::thread::current();
+            let (report, stop) = (&report, &cancel);
+            let worker = s.spawn(move || {
+                let r = work(report, stop);
+                waiter.unpark();
+                r
+            });
             let mut raised: Option<PyErr> = None;
             let mut last = (0, 0);
             while !worker.is_finished() {
