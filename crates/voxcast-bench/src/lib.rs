@@ -63,7 +63,7 @@ pub use report::{
     input_label, BenchReport, CacheStatus, Machine, Measured, MethodResult, ReferenceInfo, RunInfo,
     SceneInfo,
 };
-pub use runner::{run, run_on, MethodRenderer};
+pub use runner::{run, run_cancellable, run_on, MethodRenderer};
 pub use table::{markdown, text_table};
 
 use std::path::PathBuf;

@@ -12,6 +12,7 @@ use crate::report::{
     SceneInfo,
 };
 use crate::{median, method_params, BenchConfig, Progress};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 use voxcast::error::{Error, Result};
 use voxcast::image::Image;
@@ -69,6 +70,27 @@ pub fn run_on(
     progress: &(dyn Fn(&Progress<'_>) + Sync),
     methods_on: Option<&dyn MethodRenderer>,
 ) -> Result<BenchReport> {
+    run_cancellable(
+        scene,
+        prepared,
+        config,
+        progress,
+        methods_on,
+        &AtomicBool::new(false),
+    )
+}
+
+/// [`run_on`] that stops with [`Error::Cancelled`] once `cancel` is raised
+/// (from another thread): a CPU render stops within a tile, a GPU render
+/// at its end.
+pub fn run_cancellable(
+    scene: &Scene,
+    prepared: &Prepared,
+    config: &BenchConfig,
+    progress: &(dyn Fn(&Progress<'_>) + Sync),
+    methods_on: Option<&dyn MethodRenderer>,
+    cancel: &AtomicBool,
+) -> Result<BenchReport> {
     if config.repeat == 0 {
         return Err(Error::invalid("repeat must be at least 1"));
     }
@@ -121,12 +143,17 @@ pub fn run_on(
     // `--quality`: each method's setting from its pilot (on the CPU, which
     // the GPU matches), before anything is timed.
     if let Some(target) = config.quality {
-        let pilot = |p: &RenderParams| renderer.render(&prepared.tf, &scene.camera, p, &|_, _| {});
+        let pilot = |p: &RenderParams| {
+            renderer.render_cancellable(&prepared.tf, &scene.camera, p, &|_, _| {}, cancel)
+        };
         for slot in slots.iter_mut() {
             let spec = slot.spec.to_string();
             let choice =
-                quality::choose(&slot.params, target, quality::PILOT_PIXELS, &pilot, &|_| {})
-                    .map_err(|e| Error::invalid(format!("method `{spec}`: {e}")))?;
+                quality::choose(&slot.params, target, quality::PILOT_PIXELS, &pilot, &|_| {});
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
+            let choice = choice.map_err(|e| Error::invalid(format!("method `{spec}`: {e}")))?;
             slot.params = choice.params.clone();
             slot.quality = Some(choice);
         }
@@ -151,7 +178,7 @@ pub fn run_on(
             })
         };
         let t = Instant::now();
-        let r = renderer.render(&prepared.tf, &scene.camera, params, &tick);
+        let r = renderer.render_cancellable(&prepared.tf, &scene.camera, params, &tick, cancel);
         let ms = t.elapsed().as_secs_f64() * 1e3;
         r.map(|(img, stats)| (img, stats, ms))
     };
@@ -189,8 +216,12 @@ pub fn run_on(
             config.cache_dir.as_ref().map(|d| cache_paths(d, key).0),
         ),
         None => {
-            let (img, stats, ms) = render_one(index, "reference", &ref_params)
-                .map_err(|e| Error::invalid(format!("reference render: {e}")))?;
+            let r = render_one(index, "reference", &ref_params);
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
+            let (img, stats, ms) =
+                r.map_err(|e| Error::invalid(format!("reference render: {e}")))?;
             index += 1;
             let (cache, file) = match &config.cache_dir {
                 Some(dir) => {
@@ -234,6 +265,9 @@ pub fn run_on(
             };
             let result = render_method(index, &task, &slot.params);
             index += 1;
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Cancelled);
+            }
             match result {
                 Ok((img, stats, ms)) => {
                     if round.is_some() {

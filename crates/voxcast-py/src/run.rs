@@ -193,7 +193,8 @@ pub fn render<'py>(
 
 /// Times `methods` (a comma-separated list as `voxcast bench --methods`
 /// takes it; the default list when `None`) on the CPU against a converged
-/// reference. Returns the report as JSON and the table as text.
+/// reference. Returns the report as JSON and the table as text. Ctrl-C
+/// stops it within a tile, as a render.
 #[pyfunction]
 #[pyo3(signature = (scene, volume=None, methods=None, repeat=5, warmup=1, quality=None, cache=true, progress=None))]
 #[allow(clippy::too_many_arguments)]
@@ -221,7 +222,7 @@ pub fn bench<'py>(
         quality,
     };
     let prepared = prepare(py, scene, volume)?;
-    let report = detached(py, progress, |report, _cancel| {
+    let report = detached(py, progress, |report, cancel| {
         // Progress in thousandths of a render, over all renders of the run.
         let each = |p: &voxcast_bench::Progress<'_>| {
             report(
@@ -229,7 +230,7 @@ pub fn bench<'py>(
                 p.renders.max(1) * 1000,
             )
         };
-        voxcast_bench::run(scene, &prepared, &config, &each)
+        voxcast_bench::run_cancellable(scene, &prepared, &config, &each, None, cancel)
     })?;
     let json = serde_json::to_string(&report).map_err(err)?;
     Ok((json, voxcast_bench::text_table(&report)))

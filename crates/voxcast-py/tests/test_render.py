@@ -193,3 +193,10 @@ def test_orbit_returns_frames_and_writes_a_gif(tmp_path):
     assert data.startswith(b"GIF89a")
     with pytest.raises(vc.VoxcastError, match=".gif or .mp4"):
         vc.orbit(vol, frames=2, path=tmp_path / "o.avi")
+
+
+def test_ipython_displays_an_image_as_png():
+    formatters = need("IPython.core.formatters")
+    img = vc.render(vc.Volume(sphere(12)), size=(16, 12), progress=False)
+    png = formatters.PNGFormatter()(img)
+    assert png is not None and bytes(png).startswith(PNG)

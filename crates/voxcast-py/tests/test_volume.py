@@ -22,6 +22,7 @@ def test_c_ordered_zyx_array_is_read_in_place_and_round_trips(dtype):
     # Neither way is there a copy: the view is the caller's memory.
     assert np.shares_memory(out, a)
     assert not out.flags.writeable
+    assert np.shares_memory(np.asarray(vol), a)
     info = vol.info()
     assert info["dims"] == [12, 10, 12]
     assert info["dtype"] == vol._v.dtype

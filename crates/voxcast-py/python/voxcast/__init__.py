@@ -252,6 +252,13 @@ class Volume:
         a.flags.writeable = False
         return a
 
+    def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
+        """`np.asarray(vol)`: `to_numpy()` (a copy only when asked for)."""
+        a = self.to_numpy()
+        if dtype is not None and np.dtype(dtype) != a.dtype:
+            return a.astype(dtype)
+        return np.array(a) if copy else a
+
     def save(self, path: Union[str, os.PathLike], gzip: bool = False) -> None:
         """Writes the volume as NRRD (atomically; never over the file it came from)."""
         self._v.save_nrrd(os.fspath(path), gzip)
