@@ -5,6 +5,10 @@
 //!
 //! Nothing here panics on user input: arrays of the wrong type or shape,
 //! missing files and bad scenes come back as Python exceptions.
+//!
+//! Built only with the `python` feature (maturin sets it), so that the
+//! workspace builds and tests without a Python interpreter.
+#![cfg(feature = "python")]
 
 mod run;
 mod scene;

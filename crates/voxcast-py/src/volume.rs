@@ -142,7 +142,8 @@ pub fn open(
         time,
     };
     let is_builtin = scene.input.path.starts_with(voxcast::scene::BUILTIN_PREFIX);
-    if !is_builtin && !Path::new(&scene.input.path).exists() && !scene.input.path.contains('*') {
+    let glob = scene.input.path.contains(['*', '?', '[']);
+    if !is_builtin && !glob && !Path::new(&scene.input.path).exists() {
         return Err(err(format!("{}: no such file or folder", path.display())));
     }
     let v = py.detach(|| scene.load_volume()).map_err(err)?;
