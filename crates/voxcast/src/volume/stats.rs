@@ -171,7 +171,10 @@ mod tests {
             .collect();
         let s = ValueStats::compute(&VoxelData::I16(v.clone().into()));
         let lo = v.iter().map(|&x| x as f64).fold(f64::INFINITY, f64::min);
-        let hi = v.iter().map(|&x| x as f64).fold(f64::NEG_INFINITY, f64::max);
+        let hi = v
+            .iter()
+            .map(|&x| x as f64)
+            .fold(f64::NEG_INFINITY, f64::max);
         let sum: f64 = v.iter().map(|&x| x as f64).sum();
         assert_eq!((s.min, s.max), (lo as f32, hi as f32));
         assert_eq!(s.mean, sum / n as f64, "the mean to the last bit");
