@@ -52,20 +52,14 @@ def _native_dtype(a: np.ndarray) -> np.ndarray:
     """The array in a type voxcast stores (u8, u16, i16, f32), unchanged when
     it already is one (native byte order); others are converted (a copy)."""
     kind, size = a.dtype.kind, a.dtype.itemsize
-    if a.dtype.byteorder not in ("=", "|") and not a.dtype.isnative:
+    if not a.dtype.isnative:
         a = a.astype(a.dtype.newbyteorder("="))
+    if (kind, size) in (("u", 1), ("u", 2), ("i", 2), ("f", 4)):
+        return a
     if kind == "b":
         return a.astype(np.uint8)
-    if kind == "u" and size == 1:
-        return a
-    if kind == "u" and size == 2:
-        return a
-    if kind == "i" and size == 2:
-        return a
     if kind == "i" and size == 1:
         return a.astype(np.int16)
-    if kind == "f" and size == 4:
-        return a
     if kind in "uif":
         return a.astype(np.float32)
     raise VoxcastError(
