@@ -2,10 +2,12 @@
 //! varying fastest. Readers and generators produce it; nothing downstream
 //! needs to know where it came from.
 
+pub mod chunked;
 mod grid;
 mod stats;
 mod voxels;
 
+pub use chunked::{ChunkRange, ChunkedSource, Level, MemorySource};
 pub use grid::{Grid, GridVisitor, Voxel, VoxelKind};
 pub use stats::{Histogram, ValueStats};
 pub use voxels::Voxels;
