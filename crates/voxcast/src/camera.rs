@@ -232,6 +232,40 @@ impl Camera {
         self.ray_at(x as f32 + 0.5, y as f32 + 0.5)
     }
 
+    /// Where world point `p` falls on the image, in pixels (the inverse of
+    /// [`Camera::ray_at`]); `None` for a perspective camera when `p` is not
+    /// in front of the eye.
+    pub fn project(&self, p: Vec3) -> Option<(f32, f32)> {
+        let d = p - self.eye;
+        let (sx, sy) = match self.projection {
+            Projection::Perspective => {
+                let z = d.dot(self.forward);
+                if z <= 1e-6 {
+                    return None;
+                }
+                (d.dot(self.right) / z, d.dot(self.up) / z)
+            }
+            Projection::Orthographic => (d.dot(self.right), d.dot(self.up)),
+        };
+        let px = (sx / (self.half_height * self.aspect) + 1.0) * 0.5 * self.width as f32;
+        let py = (1.0 - sy / self.half_height) * 0.5 * self.height as f32;
+        Some((px, py))
+    }
+
+    /// Whether the camera is orthographic.
+    pub fn is_orthographic(&self) -> bool {
+        self.projection == Projection::Orthographic
+    }
+
+    /// The size of one pixel in world units at distance `z` along the view
+    /// direction (the same at every distance for an orthographic camera).
+    pub fn pixel_size_at(&self, z: f32) -> f32 {
+        match self.projection {
+            Projection::Perspective => 2.0 * self.half_height * z.max(0.0) / self.height as f32,
+            Projection::Orthographic => 2.0 * self.half_height / self.height as f32,
+        }
+    }
+
     /// The ray through image position `(px, py)` in pixels.
     #[inline]
     pub fn ray_at(&self, px: f32, py: f32) -> (Vec3, Vec3) {

@@ -12,6 +12,7 @@ pub mod march;
 pub mod medium;
 pub mod octree;
 pub mod optics;
+pub mod outofcore;
 mod packet;
 mod params;
 mod path;

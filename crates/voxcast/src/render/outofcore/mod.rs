@@ -1,0 +1,800 @@
+//! Out-of-core rendering of a chunked multi-resolution volume
+//! ([`ChunkedSource`]: OME-Zarr, or a volume in memory) under a memory
+//! budget.
+//!
+//! 1. **Level**: the coarsest level whose voxel is no larger than a pixel
+//!    where the volume comes nearest the eye (a full-screen view of 2048³
+//!    at 1024² reads level 1; zooming in reads level 0), or the one asked.
+//! 2. **Bricks**: the level's chunks. A brick whose chunks (and the border
+//!    its interpolation reads) are all transparent under the transfer
+//!    function — known from the store's chunk ranges, or because a chunk is
+//!    not stored — is skipped without reading it; so is one outside the
+//!    image.
+//! 3. **Visibility order**: bricks sorted by the sum over axes of their
+//!    index distance from the eye's brick (a ray's distance on each axis
+//!    never shrinks, so every ray meets its bricks in this order; for an
+//!    orthographic camera, by position along the view direction).
+//! 4. **March**: each brick, with a border of one voxel (two with shading)
+//!    copied from its neighbours, marches the samples of every pixel whose
+//!    ray crosses it, in parallel by rows; each pixel keeps its colour,
+//!    opacity and next sample index between bricks ([`march`]), so the
+//!    picture is the in-core `uniform` march's, and a brick is read once
+//!    per frame whatever the budget.
+//! 5. **Cache and prefetch**: decoded chunks live in an LRU cache within
+//!    the budget; a prefetch thread reads the chunks of the bricks ahead
+//!    while the render marches.
+//!
+//! Only `uniform` (and `jitter`) march here: the methods that choose steps
+//! per block or sample stochastically need the whole volume in memory.
+
+mod cache;
+mod march;
+
+pub use cache::{human_bytes, parse_bytes, CacheStats};
+
+use crate::camera::{Camera, CameraParams};
+use crate::error::{Error, Result};
+use crate::image::Image;
+use crate::render::shading::BlinnPhong;
+use crate::render::{Method, Order, RenderParams, RenderStats};
+use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
+use crate::volume::{ChunkRange, ChunkedSource, Grid, Level, ScalarType, Voxel, VoxelData};
+use cache::ChunkCache;
+use glam::Vec3;
+use march::{BrickFrame, Px, RowCount};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::Instant;
+
+/// How the out-of-core renderer reads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OutOfCoreParams {
+    /// Bytes of decoded voxels held at once (the chunk cache and the brick
+    /// being marched).
+    pub budget: u64,
+    /// Render this level (0 the finest) instead of choosing by the screen.
+    pub level: Option<usize>,
+    /// Scales the pixel size the level is chosen by: 2 reads a level
+    /// coarser, 0.5 a level finer.
+    pub lod_scale: f32,
+    /// Read ahead on a second thread while the render marches.
+    pub prefetch: bool,
+}
+
+impl Default for OutOfCoreParams {
+    fn default() -> Self {
+        OutOfCoreParams {
+            budget: default_budget(),
+            level: None,
+            lod_scale: 1.0,
+            prefetch: true,
+        }
+    }
+}
+
+/// Half the machine's available memory (`MemAvailable`), at least 256 MiB;
+/// 2 GiB where it cannot be read.
+pub fn default_budget() -> u64 {
+    let avail = std::fs::read_to_string("/proc/meminfo").ok().and_then(|s| {
+        s.lines()
+            .find(|l| l.starts_with("MemAvailable:"))
+            .and_then(|l| l.split_whitespace().nth(1)?.parse::<u64>().ok())
+            .map(|kib| kib * 1024)
+    });
+    avail.map_or(2 << 30, |a| (a / 2).max(256 << 20))
+}
+
+/// What an out-of-core render read and skipped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct OutOfCoreStats {
+    /// The level rendered.
+    pub level: usize,
+    /// Bricks (chunks) of that level.
+    pub bricks: usize,
+    /// Bricks marched.
+    pub marched: usize,
+    /// Skipped as transparent (from chunk ranges, before or after reading).
+    pub empty: usize,
+    /// Outside the image.
+    pub culled: usize,
+    /// Skipped because every ray through them had already terminated.
+    pub occluded: usize,
+    /// Bytes the store read (compressed), where it counts them.
+    pub bytes_read: u64,
+    pub cache: CacheStats,
+    /// Seconds spent waiting for chunks on the render thread.
+    pub wait_seconds: f64,
+}
+
+impl OutOfCoreStats {
+    /// Share of chunk requests answered from memory.
+    pub fn hit_rate(&self) -> f64 {
+        let n = self.cache.hits + self.cache.misses;
+        if n == 0 {
+            0.0
+        } else {
+            self.cache.hits as f64 / n as f64
+        }
+    }
+}
+
+/// The world box through level 0's voxel centres (what the camera frames).
+pub fn world_bounds(levels: &[Level]) -> (Vec3, Vec3) {
+    let l = &levels[0];
+    let ext = Vec3::from(l.dims.map(|d| (d.max(1) - 1) as f32)) * l.spacing;
+    (l.origin, l.origin + ext)
+}
+
+/// The level the renderer reads for `cam`: the coarsest whose smallest
+/// spacing is at most the size of a pixel (times `lod_scale`) where the
+/// volume comes nearest the eye.
+pub fn choose_level(levels: &[Level], cam: &Camera, lod_scale: f32) -> usize {
+    let (lo, hi) = world_bounds(levels);
+    let nearest = cam.eye.clamp(lo, hi);
+    let z = (nearest - cam.eye).dot(cam.forward).max(0.0);
+    let pixel = cam.pixel_size_at(z) * lod_scale.max(1e-6);
+    let mut best = 0;
+    for (i, l) in levels.iter().enumerate() {
+        if l.spacing.min_element() <= pixel * (1.0 + 1e-4) {
+            best = i;
+        }
+    }
+    best
+}
+
+/// Checks that the out-of-core renderer can run `params`; the error names
+/// the setting.
+fn check_params(params: &RenderParams) -> Result<()> {
+    params.validate()?;
+    if !matches!(params.method, Method::Uniform | Method::Jitter) {
+        return Err(Error::invalid(format!(
+            "method {}: out of core, voxcast marches uniform steps only (uniform, jitter); render a level that fits in memory with --level N, or raise --memory-budget until the volume fits",
+            params.method.name()
+        )));
+    }
+    if params.order != Order::FrontToBack {
+        return Err(Error::invalid(
+            "render.order back-to-front: out of core, rays are composited front to back only",
+        ));
+    }
+    if params.grouped {
+        return Err(Error::invalid(
+            "render.grouped: grouped interpolation is not available out of core",
+        ));
+    }
+    if params.spp > 1 && (params.jitter || params.method == Method::Jitter) {
+        return Err(Error::invalid(
+            "render.spp: out of core, a jittered render takes one pass (spp = 1)",
+        ));
+    }
+    Ok(())
+}
+
+/// One brick of the plan.
+struct Brick {
+    chunk: [u64; 3],
+    /// Pixel rectangle `[x0, x1) × [y0, y1)` its rays may cross.
+    rect: [u32; 4],
+    /// Chunks its data box reads (the brick's and its border's).
+    chunks: Vec<[u64; 3]>,
+}
+
+/// The per-level facts the plan and the march share.
+struct Geo<'a> {
+    level: &'a Level,
+    lidx: usize,
+    /// Border voxels below and above each brick.
+    border: (u64, u64),
+    sample_box: (Vec3, Vec3),
+}
+
+impl Geo<'_> {
+    /// The samples chunk `c` owns, in voxel coordinates.
+    fn own_box(&self, c: [u64; 3]) -> (Vec3, Vec3) {
+        let (lo, hi) = self.level.chunk_box(c);
+        let (slo, shi) = self.sample_box;
+        let lo = Vec3::from(lo.map(|v| v as f32)).max(slo);
+        let hi = Vec3::from(hi.map(|v| v as f32)).min(shi);
+        (lo, hi)
+    }
+
+    /// The voxels chunk `c`'s brick reads: its own and the border.
+    fn data_box(&self, c: [u64; 3]) -> ([u64; 3], [u64; 3]) {
+        let (lo, hi) = self.level.chunk_box(c);
+        let d = self.level.dims;
+        (
+            std::array::from_fn(|a| lo[a].saturating_sub(self.border.0)),
+            std::array::from_fn(|a| (hi[a] + self.border.1).min(d[a])),
+        )
+    }
+
+    /// The chunks a voxel box meets.
+    fn chunks_of(&self, (lo, hi): ([u64; 3], [u64; 3])) -> Vec<[u64; 3]> {
+        let ch = self.level.chunk.map(|c| c as u64);
+        let a: [u64; 3] = std::array::from_fn(|i| lo[i] / ch[i]);
+        let b: [u64; 3] = std::array::from_fn(|i| (hi[i] - 1) / ch[i]);
+        let mut v = Vec::new();
+        for z in a[2]..=b[2] {
+            for y in a[1]..=b[1] {
+                for x in a[0]..=b[0] {
+                    v.push([x, y, z]);
+                }
+            }
+        }
+        v
+    }
+}
+
+/// The level's sample box in voxel coordinates (as [`crate::volume::Volume::sample_box`]).
+fn sample_box(dims: [u64; 3]) -> (Vec3, Vec3) {
+    let ax = |d: u64| {
+        if d > 1 {
+            (0.0, (d - 1) as f32)
+        } else {
+            (-0.5, 0.5)
+        }
+    };
+    let [x, y, z] = dims.map(ax);
+    (Vec3::new(x.0, y.0, z.0), Vec3::new(x.1, y.1, z.1))
+}
+
+/// Renders `source` with `tf` over the data window `window`, reading no more
+/// than `ooc.budget` bytes of decoded voxels at once. `progress(done,
+/// total)` counts bricks; `cancel` is read before each brick.
+pub fn render_chunked(
+    source: &dyn ChunkedSource,
+    tf: &TransferFunction,
+    window: [f32; 2],
+    camera: &CameraParams,
+    params: &RenderParams,
+    ooc: &OutOfCoreParams,
+    progress: &(dyn Fn(usize, usize) + Sync),
+    cancel: &AtomicBool,
+) -> Result<(Image, RenderStats, OutOfCoreStats)> {
+    check_params(params)?;
+    camera.validate()?;
+    let start = Instant::now();
+    let levels = source.levels();
+    if levels.is_empty() {
+        return Err(Error::invalid(format!(
+            "{}: the store has no levels",
+            source.name()
+        )));
+    }
+    let (w, h) = (params.width, params.height);
+    let (lo, hi) = world_bounds(levels);
+    let cam = Camera::fit(camera, lo, hi, w, h);
+    let lidx = match ooc.level {
+        Some(l) if l >= levels.len() => {
+            return Err(Error::invalid(format!(
+                "--level {l}: {} has levels 0…{}",
+                source.name(),
+                levels.len() - 1
+            )))
+        }
+        Some(l) => l,
+        None => choose_level(levels, &cam, ooc.lod_scale),
+    };
+    let level = &levels[lidx];
+    let ty = source.scalar_type();
+    let shading = params.shading.then(BlinnPhong::default);
+    let geo = Geo {
+        level,
+        lidx,
+        border: if shading.is_some() { (1, 2) } else { (0, 1) },
+        sample_box: sample_box(level.dims),
+    };
+    // The budget must hold one brick and the chunks it reads.
+    let brick_bytes = level
+        .chunk
+        .iter()
+        .map(|&c| c as u64 + geo.border.0 + geo.border.1)
+        .product::<u64>()
+        * ty.size() as u64;
+    let per_brick = if shading.is_some() { 27 } else { 8 };
+    let need = brick_bytes + per_brick * level.chunk_bytes(ty);
+    if ooc.budget < need {
+        return Err(cache::too_small(
+            ooc.budget,
+            need,
+            &format!(
+                "chunks of {}×{}×{} {} at level {lidx}: one brick with its border and the {per_brick} chunks it reads",
+                level.chunk[0], level.chunk[1], level.chunk[2], ty
+            ),
+        ));
+    }
+    let mut window = window;
+    if window[0] == window[1] {
+        window = [window[0] - 0.5, window[0] + 0.5];
+    }
+    // What the store knows of each chunk, without reading it.
+    let counts = level.chunk_counts();
+    let cidx = |c: [u64; 3]| (c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize;
+    let n_chunks = counts.iter().product::<u64>() as usize;
+    let ranges: Vec<ChunkRange> = (0..n_chunks)
+        .into_par_iter()
+        .map(|i| {
+            let i = i as u64;
+            let c = [
+                i % counts[0],
+                (i / counts[0]) % counts[1],
+                i / (counts[0] * counts[1]),
+            ];
+            source.chunk_range(lidx, c)
+        })
+        .collect();
+    let transparent = |lo: f32, hi: f32| {
+        let (a, b) = (
+            (lo - window[0]) / (window[1] - window[0]),
+            (hi - window[0]) / (window[1] - window[0]),
+        );
+        b < 0.0 || tf.max_opacity_in(a.max(0.0), b.min(1.0)) <= 0.0
+    };
+    let known_empty = |r: &ChunkRange| match *r {
+        ChunkRange::Fill(v) => v.is_nan() || transparent(v, v),
+        ChunkRange::Range(a, b) => transparent(a, b),
+        ChunkRange::Unknown => false,
+    };
+
+    // The plan: the bricks to march, in visibility order.
+    let mut stats = OutOfCoreStats {
+        level: lidx,
+        bricks: n_chunks,
+        ..Default::default()
+    };
+    let mut plan: Vec<(i64, Brick)> = Vec::new();
+    let to_world = |p: Vec3| level.origin + p * level.spacing;
+    let inv_spacing = Vec3::ONE / level.spacing;
+    let eye_v = (cam.eye - level.origin) * inv_spacing;
+    let ch = level.chunk.map(|c| c as f32);
+    for i in 0..n_chunks as u64 {
+        let c = [
+            i % counts[0],
+            (i / counts[0]) % counts[1],
+            i / (counts[0] * counts[1]),
+        ];
+        let (olo, ohi) = geo.own_box(c);
+        let Some(rect) = screen_rect(&cam, to_world(olo), to_world(ohi), w, h) else {
+            stats.culled += 1;
+            continue;
+        };
+        let chunks = geo.chunks_of(geo.data_box(c));
+        if chunks.iter().all(|&k| known_empty(&ranges[cidx(k)])) {
+            stats.empty += 1;
+            continue;
+        }
+        let key = if cam.is_orthographic() {
+            (0..3)
+                .map(|a| {
+                    if cam.forward[a] >= 0.0 {
+                        c[a] as i64
+                    } else {
+                        counts[a] as i64 - 1 - c[a] as i64
+                    }
+                })
+                .sum()
+        } else {
+            (0..3)
+                .map(|a| {
+                    let e = (eye_v[a] / ch[a]).floor() as i64;
+                    (c[a] as i64 - e).abs()
+                })
+                .sum()
+        };
+        plan.push((
+            key,
+            Brick {
+                chunk: c,
+                rect,
+                chunks,
+            },
+        ));
+    }
+    plan.sort_by_key(|b| b.0);
+    let plan: Vec<Brick> = plan.into_iter().map(|b| b.1).collect();
+
+    // Every pixel's ray.
+    let unit = levels[0].spacing.min_element();
+    let st = params.step * level.spacing.min_element();
+    let jitter = (params.jitter || params.method == Method::Jitter).then_some(params.seed);
+    let mut px: Vec<Px> = (0..w * h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (o, d) = cam.ray(x, y);
+            let u = jitter.map_or(0.0, |s| crate::render::rng::pixel_sequence(s, x, y, 0));
+            Px::start(
+                (o - level.origin) * inv_spacing,
+                d * inv_spacing,
+                -d,
+                geo.sample_box,
+                st,
+                u,
+            )
+        })
+        .collect();
+    let hit = px.iter().filter(|p| p.live).count() as u64;
+
+    let lut = Lut::new(tf, params.step);
+    let q = lut.premultiplied(st / unit);
+    let (emission, absorption) = match params.optical {
+        crate::render::OpticalModel::AbsorptionOnly => (0.0, 1.0),
+        crate::render::OpticalModel::EmissionOnly => (1.0, 0.0),
+        crate::render::OpticalModel::EmissionAbsorption => (1.0, 1.0),
+    };
+    let stop = if params.ert < 1.0 {
+        params.ert
+    } else {
+        f32::INFINITY
+    };
+    let cache = ChunkCache::new(source, ooc.budget - brick_bytes);
+    let cursor = AtomicUsize::new(0);
+    let done = AtomicBool::new(false);
+    let mut counts_total = RowCount::default();
+    let mut error: Option<Error> = None;
+    let chunk_bytes = level.chunk_bytes(ty).max(1);
+    let lookahead = ((ooc.budget - brick_bytes) / (16 * chunk_bytes)).min(64) as usize;
+    std::thread::scope(|scope| {
+        if ooc.prefetch && lookahead > 0 {
+            let (plan, cache, cursor, done, ranges) = (&plan, &cache, &cursor, &done, &ranges);
+            scope.spawn(move || {
+                for (j, b) in plan.iter().enumerate() {
+                    while j > cursor.load(Ordering::Acquire) + lookahead {
+                        if done.load(Ordering::Acquire) {
+                            return;
+                        }
+                        std::thread::sleep(std::time::Duration::from_micros(200));
+                    }
+                    for &k in &b.chunks {
+                        if done.load(Ordering::Acquire) {
+                            return;
+                        }
+                        if matches!(ranges[cidx(k)], ChunkRange::Fill(_)) || cache.has((lidx, k)) {
+                            continue;
+                        }
+                        // An error is the render thread's to report.
+                        let _ = cache.get((lidx, k));
+                    }
+                }
+            });
+        }
+        let mut buf = BrickBuf::new(ty);
+        for (j, b) in plan.iter().enumerate() {
+            cursor.store(j, Ordering::Release);
+            if cancel.load(Ordering::Relaxed) {
+                error = Some(Error::Cancelled);
+                break;
+            }
+            let [x0, x1, y0, y1] = b.rect;
+            let any_live = (y0..y1).any(|y| {
+                let r = (y * w) as usize;
+                px[r + x0 as usize..r + x1 as usize].iter().any(|p| p.live)
+            });
+            if !any_live {
+                stats.occluded += 1;
+                progress(j + 1, plan.len());
+                continue;
+            }
+            let t = Instant::now();
+            let dbox = geo.data_box(b.chunk);
+            match buf.assemble(&geo, dbox, &b.chunks, &ranges, cidx, &cache) {
+                Ok(Some((lo, hi))) if transparent(lo, hi) => {
+                    stats.wait_seconds += t.elapsed().as_secs_f64();
+                    stats.empty += 1;
+                    progress(j + 1, plan.len());
+                    continue;
+                }
+                Ok(None) => {
+                    stats.empty += 1;
+                    progress(j + 1, plan.len());
+                    continue;
+                }
+                Ok(_) => {}
+                Err(e) => {
+                    error = Some(e);
+                    break;
+                }
+            }
+            stats.wait_seconds += t.elapsed().as_secs_f64();
+            stats.marched += 1;
+            let (olo, ohi) = geo.own_box(b.chunk);
+            let dims = std::array::from_fn(|a| (dbox.1[a] - dbox.0[a]) as usize);
+            let data_lo = Vec3::from(dbox.0.map(|v| v as f32));
+            let frame = FrameArgs {
+                data_lo,
+                own_lo: olo,
+                own_hi: ohi,
+                lut: &lut,
+                q: &q,
+                st,
+                unit,
+                inv_spacing,
+                emission,
+                absorption,
+                stop,
+                shading,
+                window,
+            };
+            let c = buf.march(&frame, dims, &mut px, w, b.rect);
+            counts_total.samples += c.samples;
+            counts_total.shaded += c.shaded;
+            counts_total.terminated += c.terminated;
+            progress(j + 1, plan.len());
+        }
+        done.store(true, Ordering::Release);
+    });
+    if let Some(e) = error {
+        return Err(e);
+    }
+    let bg = Vec3::from(params.background.map(srgb_to_linear));
+    let pixels = px
+        .par_iter()
+        .map(|p| {
+            let c = p.finish();
+            let rgb = c.truncate() + bg * (1.0 - c.w);
+            [rgb.x, rgb.y, rgb.z, c.w]
+        })
+        .collect();
+    let image = Image {
+        width: w,
+        height: h,
+        pixels,
+    };
+    stats.cache = cache.stats();
+    stats.bytes_read = source.bytes_read();
+    let rs = RenderStats {
+        rays: (w * h) as u64,
+        rays_hit: hit,
+        samples: counts_total.samples,
+        interpolations: counts_total.samples,
+        gradient_interpolations: 6 * counts_total.shaded,
+        early_terminated: counts_total.terminated,
+        capped_paths: 0,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    Ok((image, rs, stats))
+}
+
+/// The pixel rectangle `[x0, x1, y0, y1]` the box `[lo, hi]` (world) may
+/// cover; `None` when it is off the image.
+fn screen_rect(cam: &Camera, lo: Vec3, hi: Vec3, w: u32, h: u32) -> Option<[u32; 4]> {
+    let (mut x0, mut x1, mut y0, mut y1) = (
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    );
+    for i in 0..8 {
+        let p = Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
+        match cam.project(p) {
+            Some((x, y)) => {
+                x0 = x0.min(x);
+                x1 = x1.max(x);
+                y0 = y0.min(y);
+                y1 = y1.max(y);
+            }
+            // A corner behind the eye: the box may cover any pixel.
+            None => return Some([0, w, 0, h]),
+        }
+    }
+    // One pixel of margin for rounding.
+    let cx = |v: f32| (v.max(-1.0).min(w as f32 + 1.0)) as i64;
+    let cy = |v: f32| (v.max(-1.0).min(h as f32 + 1.0)) as i64;
+    let r = [
+        (cx(x0.floor()) - 1).max(0) as u32,
+        (cx(x1.ceil()) + 1).min(w as i64) as u32,
+        (cy(y0.floor()) - 1).max(0) as u32,
+        (cy(y1.ceil()) + 1).min(h as i64) as u32,
+    ];
+    (r[0] < r[1] && r[2] < r[3]).then_some(r)
+}
+
+/// A brick's frame before the grid is typed.
+struct FrameArgs<'a> {
+    data_lo: Vec3,
+    own_lo: Vec3,
+    own_hi: Vec3,
+    lut: &'a Lut,
+    q: &'a [[f32; 4]; crate::transfer::LUT_SIZE],
+    st: f32,
+    unit: f32,
+    inv_spacing: Vec3,
+    emission: f32,
+    absorption: f32,
+    stop: f32,
+    shading: Option<BlinnPhong>,
+    window: [f32; 2],
+}
+
+/// The brick being marched: its data box copied out of the cached chunks,
+/// in the store's type (one buffer reused brick after brick).
+enum BrickBuf {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    I16(Vec<i16>),
+    F32(Vec<f32>),
+}
+
+/// The voxel types a brick holds, with their [`VoxelData`] variant.
+trait Stored: Voxel + Default {
+    fn of(d: &VoxelData) -> &[Self];
+    fn from_f32(v: f32) -> Self;
+}
+
+macro_rules! stored {
+    ($t:ty, $var:ident) => {
+        impl Stored for $t {
+            fn of(d: &VoxelData) -> &[$t] {
+                match d {
+                    VoxelData::$var(v) => v,
+                    _ => &[],
+                }
+            }
+            fn from_f32(v: f32) -> $t {
+                v as $t
+            }
+        }
+    };
+}
+stored!(u8, U8);
+stored!(u16, U16);
+stored!(i16, I16);
+stored!(f32, F32);
+
+impl BrickBuf {
+    fn new(ty: ScalarType) -> BrickBuf {
+        match ty {
+            ScalarType::U8 => BrickBuf::U8(Vec::new()),
+            ScalarType::U16 => BrickBuf::U16(Vec::new()),
+            ScalarType::I16 => BrickBuf::I16(Vec::new()),
+            ScalarType::F32 => BrickBuf::F32(Vec::new()),
+        }
+    }
+
+    /// Copies the data box out of its chunks; returns the value range of
+    /// those chunks (`None`: nothing finite).
+    fn assemble(
+        &mut self,
+        geo: &Geo<'_>,
+        dbox: ([u64; 3], [u64; 3]),
+        chunks: &[[u64; 3]],
+        ranges: &[ChunkRange],
+        cidx: impl Fn([u64; 3]) -> usize,
+        cache: &ChunkCache<'_>,
+    ) -> Result<Option<(f32, f32)>> {
+        match self {
+            BrickBuf::U8(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::U16(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::I16(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::F32(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+        }
+    }
+
+    fn march(
+        &self,
+        a: &FrameArgs<'_>,
+        dims: [usize; 3],
+        px: &mut [Px],
+        w: u32,
+        rect: [u32; 4],
+    ) -> RowCount {
+        match self {
+            BrickBuf::U8(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::U16(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::I16(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::F32(v) => march_rows(v, a, dims, px, w, rect),
+        }
+    }
+}
+
+fn fill_box<T: Stored>(
+    out: &mut Vec<T>,
+    geo: &Geo<'_>,
+    (lo, hi): ([u64; 3], [u64; 3]),
+    chunks: &[[u64; 3]],
+    ranges: &[ChunkRange],
+    cidx: &impl Fn([u64; 3]) -> usize,
+    cache: &ChunkCache<'_>,
+) -> Result<Option<(f32, f32)>> {
+    let d: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as usize);
+    out.clear();
+    out.resize(d[0] * d[1] * d[2], T::default());
+    let mut range: Option<(f32, f32)> = None;
+    let mut widen = |r: (f32, f32)| {
+        range = Some(match range {
+            Some((a, b)) => (a.min(r.0), b.max(r.1)),
+            None => r,
+        })
+    };
+    for &k in chunks {
+        let (clo, chi) = geo.level.chunk_box(k);
+        // The part of the chunk inside the data box.
+        let a: [u64; 3] = std::array::from_fn(|i| clo[i].max(lo[i]));
+        let b: [u64; 3] = std::array::from_fn(|i| chi[i].min(hi[i]));
+        if (0..3).any(|i| a[i] >= b[i]) {
+            continue;
+        }
+        let cd: [usize; 3] = std::array::from_fn(|i| (chi[i] - clo[i]) as usize);
+        if let ChunkRange::Fill(v) = ranges[cidx(k)] {
+            if v.is_finite() {
+                widen((v, v));
+            }
+            let fill = T::from_f32(v);
+            for z in a[2]..b[2] {
+                for y in a[1]..b[1] {
+                    let o = ((z - lo[2]) as usize * d[1] + (y - lo[1]) as usize) * d[0];
+                    out[o + (a[0] - lo[0]) as usize..o + (b[0] - lo[0]) as usize].fill(fill);
+                }
+            }
+            continue;
+        }
+        let chunk = cache.get((geo.lidx, k))?;
+        let src = T::of(&chunk.data);
+        if src.len() != cd[0] * cd[1] * cd[2] {
+            return Err(Error::invalid(format!(
+                "level {} chunk {:?}: the store returned {} voxels of another type or shape (expected {}×{}×{})",
+                geo.lidx, k, chunk.data.len(), cd[0], cd[1], cd[2]
+            )));
+        }
+        if let Some(r) = chunk.range {
+            widen(r);
+        }
+        for z in a[2]..b[2] {
+            for y in a[1]..b[1] {
+                let o = ((z - lo[2]) as usize * d[1] + (y - lo[1]) as usize) * d[0];
+                let s = ((z - clo[2]) as usize * cd[1] + (y - clo[1]) as usize) * cd[0];
+                let n = (b[0] - a[0]) as usize;
+                out[o + (a[0] - lo[0]) as usize..][..n]
+                    .copy_from_slice(&src[s + (a[0] - clo[0]) as usize..][..n]);
+            }
+        }
+    }
+    Ok(range)
+}
+
+fn march_rows<T: Voxel>(
+    data: &[T],
+    a: &FrameArgs<'_>,
+    dims: [usize; 3],
+    px: &mut [Px],
+    w: u32,
+    [x0, x1, y0, y1]: [u32; 4],
+) -> RowCount {
+    let f = BrickFrame {
+        grid: Grid::new(data, dims, a.window[0], a.window[1]),
+        data_lo: a.data_lo,
+        own_lo: a.own_lo,
+        own_hi: a.own_hi,
+        lut: a.lut,
+        q: a.q,
+        st: a.st,
+        unit: a.unit,
+        inv_spacing: a.inv_spacing,
+        emission: a.emission,
+        absorption: a.absorption,
+        stop: a.stop,
+        shading: a.shading,
+    };
+    let w = w as usize;
+    px[y0 as usize * w..y1 as usize * w]
+        .par_chunks_mut(w)
+        .map(|row| {
+            let mut n = RowCount::default();
+            for p in &mut row[x0 as usize..x1 as usize] {
+                march::march(&f, p, &mut n);
+            }
+            n
+        })
+        .reduce(RowCount::default, |a, b| RowCount {
+            samples: a.samples + b.samples,
+            shaded: a.shaded + b.shaded,
+            terminated: a.terminated + b.terminated,
+        })
+}
+
+#[cfg(test)]
+mod tests;

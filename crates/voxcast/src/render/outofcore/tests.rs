@@ -1,0 +1,191 @@
+use super::*;
+use crate::camera::Projection;
+use crate::metrics::psnr;
+use crate::volume::{MemorySource, Volume};
+
+fn params(size: u32, shading: bool) -> RenderParams {
+    RenderParams {
+        width: size,
+        height: size,
+        shading,
+        ..Default::default()
+    }
+}
+
+fn camera(zoom: f32, projection: Projection) -> CameraParams {
+    CameraParams {
+        azimuth: 30.0,
+        elevation: 20.0,
+        zoom,
+        projection,
+        ..Default::default()
+    }
+}
+
+fn in_core(vol: &Volume, tf: &TransferFunction, cam: &CameraParams, p: &RenderParams) -> Image {
+    let window = tf.window_for(vol, None);
+    crate::render::render(vol, tf, window, cam, p, &|_, _| {})
+        .unwrap()
+        .0
+}
+
+fn out_of_core(
+    src: &MemorySource,
+    tf: &TransferFunction,
+    cam: &CameraParams,
+    p: &RenderParams,
+    ooc: &OutOfCoreParams,
+) -> (Image, OutOfCoreStats) {
+    let window = tf.window_for(src.volume(0), None);
+    let (img, _, st) = render_chunked(
+        src,
+        tf,
+        window,
+        cam,
+        p,
+        ooc,
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )
+    .unwrap();
+    (img, st)
+}
+
+fn level0(budget: u64) -> OutOfCoreParams {
+    OutOfCoreParams {
+        budget,
+        level: Some(0),
+        lod_scale: 1.0,
+        prefetch: true,
+    }
+}
+
+#[test]
+fn bricks_in_visibility_order_give_the_in_core_picture() {
+    let vol = crate::builtin::open("demo").unwrap();
+    let tf = TransferFunction::auto(&vol);
+    // Chunks of uneven shape, so brick faces fall everywhere.
+    let src = MemorySource::new(vol.clone(), 0, [20, 16, 24]).unwrap();
+    for (shading, projection) in [
+        (false, Projection::Perspective),
+        (true, Projection::Perspective),
+        (false, Projection::Orthographic),
+    ] {
+        for az in [30.0, 210.0] {
+            let mut cam = camera(1.0, projection);
+            cam.azimuth = az;
+            cam.elevation = if az > 100.0 { -35.0 } else { 20.0 };
+            let p = params(96, shading);
+            let a = in_core(&vol, &tf, &cam, &p);
+            let (b, st) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
+            let db = psnr(&a, &b).unwrap();
+            assert!(
+                db >= 60.0,
+                "shading {shading} {projection:?} az {az}: {db:.1} dB"
+            );
+            assert!(st.marched > 0 && st.marched < st.bricks, "{st:?}");
+        }
+    }
+}
+
+#[test]
+fn a_budget_of_a_few_chunks_evicts_and_gives_the_same_image() {
+    let vol = crate::builtin::open("demo").unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let src = MemorySource::new(vol, 0, [16, 16, 16]).unwrap();
+    let cam = camera(1.0, Projection::Perspective);
+    let p = params(64, false);
+    let (big, s_big) = out_of_core(&src, &tf, &cam, &p, &level0(256 << 20));
+    // One 17³ brick and 8 chunks of 4 KiB, and little more.
+    let tiny = 17 * 17 * 17 + 10 * 4096;
+    let (small, s_small) = out_of_core(&src, &tf, &cam, &p, &level0(tiny));
+    assert_eq!(big.pixels, small.pixels);
+    // The big cache reads each chunk once; the tiny one reads some again.
+    assert!(
+        s_small.cache.misses > s_big.cache.misses,
+        "{s_small:?} {s_big:?}"
+    );
+    assert!(s_small.cache.peak_bytes <= tiny, "{s_small:?}");
+    let e = render_chunked(
+        &src,
+        &tf,
+        [0.0, 255.0],
+        &cam,
+        &p,
+        &level0(4096),
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("--memory-budget") && e.contains("below one brick"),
+        "{e}"
+    );
+}
+
+#[test]
+fn the_level_follows_the_size_of_a_pixel() {
+    // 256³ voxels of spacing 1 and four levels; a 128² image of the whole
+    // volume has pixels of about 3 voxels: level 1 (2 voxels) fits, level 2
+    // (4) does not.
+    let levels: Vec<Level> = (0..4)
+        .map(|l| Level {
+            dims: [256 >> l; 3],
+            spacing: Vec3::splat((1 << l) as f32),
+            origin: Vec3::splat(((1 << l) as f32 - 1.0) * 0.5),
+            chunk: [64; 3],
+        })
+        .collect();
+    let (lo, hi) = world_bounds(&levels);
+    let at = |zoom: f32, size: u32| {
+        let cam = Camera::fit(&camera(zoom, Projection::Perspective), lo, hi, size, size);
+        choose_level(&levels, &cam, 1.0)
+    };
+    assert_eq!(at(1.0, 128), 1);
+    assert_eq!(at(1.0, 64), 2);
+    assert_eq!(at(1.0, 1024), 0);
+    // Zooming in four times reads a finer level.
+    assert_eq!(at(4.0, 128), 0);
+}
+
+#[test]
+fn other_methods_are_refused_by_name() {
+    let vol = crate::builtin::open("sphere").unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let src = MemorySource::new(vol, 0, [32; 3]).unwrap();
+    let mut p = params(32, false);
+    p.method = Method::Adaptive;
+    let e = render_chunked(
+        &src,
+        &tf,
+        [0.0, 255.0],
+        &camera(1.0, Projection::Perspective),
+        &p,
+        &level0(64 << 20),
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("adaptive") && e.contains("uniform"), "{e}");
+}
+
+#[test]
+fn a_coarser_level_reads_fewer_bytes_and_looks_alike() {
+    let vol = crate::builtin::open("demo").unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let src = MemorySource::new(vol.clone(), 2, [32; 3]).unwrap();
+    let cam = camera(1.0, Projection::Perspective);
+    let p = params(64, false);
+    let (fine, s0) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
+    let mut one = level0(64 << 20);
+    one.level = Some(1);
+    let (coarse, s1) = out_of_core(&src, &tf, &cam, &p, &one);
+    assert!(
+        s1.cache.decoded_bytes * 4 < s0.cache.decoded_bytes,
+        "{s0:?} {s1:?}"
+    );
+    let db = psnr(&fine, &coarse).unwrap();
+    assert!(db > 20.0, "{db}");
+}
