@@ -227,7 +227,7 @@ pub fn downsample2_data(data: &VoxelData, d: [usize; 3]) -> VoxelData {
     use rayon::prelude::*;
     let nd = half_dims(d.map(|v| v as u64)).map(|v| v as usize);
     macro_rules! go {
-        ($v:expr, $var:ident, $t:ty, $round:expr) => {{
+        ($v:expr, $var:ident, $t:ty, $round:path) => {{
             let v: &[$t] = $v;
             let mut out: Vec<$t> = vec![Default::default(); nd[0] * nd[1] * nd[2]];
             out.par_chunks_mut(nd[0] * nd[1])
@@ -257,8 +257,7 @@ pub fn downsample2_data(data: &VoxelData, d: [usize; 3]) -> VoxelData {
                                     }
                                 }
                             }
-                            let round: fn(f64) -> $t = $round;
-                            slab[i + nd[0] * j] = round(sum / n as f64);
+                            slab[i + nd[0] * j] = $round(sum / n as f64);
                         }
                     }
                 });
@@ -266,10 +265,26 @@ pub fn downsample2_data(data: &VoxelData, d: [usize; 3]) -> VoxelData {
         }};
     }
     match data {
-        VoxelData::U8(v) => go!(v, U8, u8, |m| m.round() as u8),
-        VoxelData::U16(v) => go!(v, U16, u16, |m| m.round() as u16),
-        VoxelData::I16(v) => go!(v, I16, i16, |m| m.round() as i16),
-        VoxelData::F32(v) => go!(v, F32, f32, |m| m as f32),
+        VoxelData::U8(v) => go!(v, U8, u8, mean::u8),
+        VoxelData::U16(v) => go!(v, U16, u16, mean::u16),
+        VoxelData::I16(v) => go!(v, I16, i16, mean::i16),
+        VoxelData::F32(v) => go!(v, F32, f32, mean::f32),
+    }
+}
+
+/// A mean back in the stored type (integers rounded to nearest).
+mod mean {
+    pub fn u8(m: f64) -> u8 {
+        m.round() as u8
+    }
+    pub fn u16(m: f64) -> u16 {
+        m.round() as u16
+    }
+    pub fn i16(m: f64) -> i16 {
+        m.round() as i16
+    }
+    pub fn f32(m: f64) -> f32 {
+        m as f32
     }
 }
 

@@ -46,6 +46,18 @@ pub struct CacheStats {
     pub peak_bytes: u64,
 }
 
+impl CacheStats {
+    /// The counts since `before` (the peak stays the cache's peak).
+    pub fn since(&self, before: &CacheStats) -> CacheStats {
+        CacheStats {
+            hits: self.hits - before.hits,
+            misses: self.misses - before.misses,
+            decoded_bytes: self.decoded_bytes - before.decoded_bytes,
+            peak_bytes: self.peak_bytes,
+        }
+    }
+}
+
 /// Decoded chunks under a byte budget.
 pub(super) struct ChunkCache<'s> {
     source: &'s dyn ChunkedSource,

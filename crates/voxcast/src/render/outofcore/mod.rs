@@ -240,7 +240,9 @@ fn sample_box(dims: [u64; 3]) -> (Vec3, Vec3) {
 
 /// Renders `source` with `tf` over the data window `window`, reading no more
 /// than `ooc.budget` bytes of decoded voxels at once. `progress(done,
-/// total)` counts bricks; `cancel` is read before each brick.
+/// total)` counts bricks; `cancel` is read before each brick. For several
+/// renders of one store, make an [`OutOfCore`] once: its cache stays warm.
+#[allow(clippy::too_many_arguments)]
 pub fn render_chunked(
     source: &dyn ChunkedSource,
     tf: &TransferFunction,
@@ -251,50 +253,95 @@ pub fn render_chunked(
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<(Image, RenderStats, OutOfCoreStats)> {
-    check_params(params)?;
-    camera.validate()?;
-    let start = Instant::now();
-    let levels = source.levels();
-    if levels.is_empty() {
-        return Err(Error::invalid(format!(
-            "{}: the store has no levels",
-            source.name()
-        )));
+    OutOfCore::new(source, ooc.clone()).render(tf, window, camera, params, progress, cancel)
+}
+
+/// A chunked store and its chunk cache, for renders one after another (a
+/// viewer, an orbit, a benchmark): chunks read by one render serve the next.
+pub struct OutOfCore<'s> {
+    source: &'s dyn ChunkedSource,
+    ooc: OutOfCoreParams,
+    cache: ChunkCache<'s>,
+}
+
+impl<'s> OutOfCore<'s> {
+    /// Prepares `source` for rendering within `ooc.budget`.
+    pub fn new(source: &'s dyn ChunkedSource, ooc: OutOfCoreParams) -> OutOfCore<'s> {
+        // The brick being marched is held beside the cache: the largest a
+        // brick of any level can be (a shaded one, with its border of 3).
+        let ty = source.scalar_type();
+        let brick_max = source
+            .levels()
+            .iter()
+            .map(|l| l.chunk.iter().map(|&c| c as u64 + 3).product::<u64>() * ty.size() as u64)
+            .max()
+            .unwrap_or(0);
+        let cache = ChunkCache::new(source, ooc.budget.saturating_sub(brick_max));
+        OutOfCore { source, ooc, cache }
     }
-    let (w, h) = (params.width, params.height);
-    let (lo, hi) = world_bounds(levels);
-    let cam = Camera::fit(camera, lo, hi, w, h);
-    let lidx = match ooc.level {
-        Some(l) if l >= levels.len() => {
+
+    /// What the cache has done since it was made.
+    pub fn cache_stats(&self) -> CacheStats {
+        self.cache.stats()
+    }
+
+    /// Renders one image; see [`render_chunked`].
+    pub fn render(
+        &self,
+        tf: &TransferFunction,
+        window: [f32; 2],
+        camera: &CameraParams,
+        params: &RenderParams,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        cancel: &AtomicBool,
+    ) -> Result<(Image, RenderStats, OutOfCoreStats)> {
+        let (source, ooc) = (self.source, &self.ooc);
+        let before = self.cache.stats();
+        let read_before = source.bytes_read();
+        check_params(params)?;
+        camera.validate()?;
+        let start = Instant::now();
+        let levels = source.levels();
+        if levels.is_empty() {
             return Err(Error::invalid(format!(
-                "--level {l}: {} has levels 0…{}",
-                source.name(),
-                levels.len() - 1
-            )))
+                "{}: the store has no levels",
+                source.name()
+            )));
         }
-        Some(l) => l,
-        None => choose_level(levels, &cam, ooc.lod_scale),
-    };
-    let level = &levels[lidx];
-    let ty = source.scalar_type();
-    let shading = params.shading.then(BlinnPhong::default);
-    let geo = Geo {
-        level,
-        lidx,
-        border: if shading.is_some() { (1, 2) } else { (0, 1) },
-        sample_box: sample_box(level.dims),
-    };
-    // The budget must hold one brick and the chunks it reads.
-    let brick_bytes = level
-        .chunk
-        .iter()
-        .map(|&c| c as u64 + geo.border.0 + geo.border.1)
-        .product::<u64>()
-        * ty.size() as u64;
-    let per_brick = if shading.is_some() { 27 } else { 8 };
-    let need = brick_bytes + per_brick * level.chunk_bytes(ty);
-    if ooc.budget < need {
-        return Err(cache::too_small(
+        let (w, h) = (params.width, params.height);
+        let (lo, hi) = world_bounds(levels);
+        let cam = Camera::fit(camera, lo, hi, w, h);
+        let lidx = match ooc.level {
+            Some(l) if l >= levels.len() => {
+                return Err(Error::invalid(format!(
+                    "--level {l}: {} has levels 0…{}",
+                    source.name(),
+                    levels.len() - 1
+                )))
+            }
+            Some(l) => l,
+            None => choose_level(levels, &cam, ooc.lod_scale),
+        };
+        let level = &levels[lidx];
+        let ty = source.scalar_type();
+        let shading = params.shading.then(BlinnPhong::default);
+        let geo = Geo {
+            level,
+            lidx,
+            border: if shading.is_some() { (1, 2) } else { (0, 1) },
+            sample_box: sample_box(level.dims),
+        };
+        // The budget must hold one brick and the chunks it reads.
+        let brick_bytes = level
+            .chunk
+            .iter()
+            .map(|&c| c as u64 + geo.border.0 + geo.border.1)
+            .product::<u64>()
+            * ty.size() as u64;
+        let per_brick = if shading.is_some() { 27 } else { 8 };
+        let need = brick_bytes + per_brick * level.chunk_bytes(ty);
+        if ooc.budget < need {
+            return Err(cache::too_small(
             ooc.budget,
             need,
             &format!(
@@ -302,257 +349,283 @@ pub fn render_chunked(
                 level.chunk[0], level.chunk[1], level.chunk[2], ty
             ),
         ));
-    }
-    let mut window = window;
-    if window[0] == window[1] {
-        window = [window[0] - 0.5, window[0] + 0.5];
-    }
-    // What the store knows of each chunk, without reading it.
-    let counts = level.chunk_counts();
-    let cidx = |c: [u64; 3]| (c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize;
-    let n_chunks = counts.iter().product::<u64>() as usize;
-    let ranges: Vec<ChunkRange> = (0..n_chunks)
-        .into_par_iter()
-        .map(|i| {
-            let i = i as u64;
+        }
+        let mut window = window;
+        if window[0] == window[1] {
+            window = [window[0] - 0.5, window[0] + 0.5];
+        }
+        // What the store knows of each chunk, without reading it.
+        let counts = level.chunk_counts();
+        let cidx = |c: [u64; 3]| (c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize;
+        let n_chunks = counts.iter().product::<u64>() as usize;
+        let ranges: Vec<ChunkRange> = (0..n_chunks)
+            .into_par_iter()
+            .map(|i| {
+                let i = i as u64;
+                let c = [
+                    i % counts[0],
+                    (i / counts[0]) % counts[1],
+                    i / (counts[0] * counts[1]),
+                ];
+                source.chunk_range(lidx, c)
+            })
+            .collect();
+        let transparent = |lo: f32, hi: f32| {
+            let (a, b) = (
+                (lo - window[0]) / (window[1] - window[0]),
+                (hi - window[0]) / (window[1] - window[0]),
+            );
+            b < 0.0 || tf.max_opacity_in(a.max(0.0), b.min(1.0)) <= 0.0
+        };
+        // Whether values in `[lo, hi]` may show, with a table entry of margin
+        // on each side (a value is classified by its nearest entry).
+        let margin = 1.0 / (crate::transfer::LUT_SIZE - 1) as f32;
+        let visible = |lo: f32, hi: f32| {
+            let (a, b) = (
+                (lo - window[0]) / (window[1] - window[0]) - margin,
+                (hi - window[0]) / (window[1] - window[0]) + margin,
+            );
+            b >= 0.0 && tf.max_opacity_in(a.max(0.0), b.min(1.0)) > 0.0
+        };
+        let known_empty = |r: &ChunkRange| match *r {
+            ChunkRange::Fill(v) => v.is_nan() || transparent(v, v),
+            ChunkRange::Range(a, b) => transparent(a, b),
+            ChunkRange::Unknown => false,
+        };
+
+        // The plan: the bricks to march, in visibility order.
+        let mut stats = OutOfCoreStats {
+            level: lidx,
+            bricks: n_chunks,
+            ..Default::default()
+        };
+        let mut plan: Vec<(i64, Brick)> = Vec::new();
+        let to_world = |p: Vec3| level.origin + p * level.spacing;
+        let inv_spacing = Vec3::ONE / level.spacing;
+        let eye_v = (cam.eye - level.origin) * inv_spacing;
+        let ch = level.chunk.map(|c| c as f32);
+        for i in 0..n_chunks as u64 {
             let c = [
                 i % counts[0],
                 (i / counts[0]) % counts[1],
                 i / (counts[0] * counts[1]),
             ];
-            source.chunk_range(lidx, c)
-        })
-        .collect();
-    let transparent = |lo: f32, hi: f32| {
-        let (a, b) = (
-            (lo - window[0]) / (window[1] - window[0]),
-            (hi - window[0]) / (window[1] - window[0]),
-        );
-        b < 0.0 || tf.max_opacity_in(a.max(0.0), b.min(1.0)) <= 0.0
-    };
-    let known_empty = |r: &ChunkRange| match *r {
-        ChunkRange::Fill(v) => v.is_nan() || transparent(v, v),
-        ChunkRange::Range(a, b) => transparent(a, b),
-        ChunkRange::Unknown => false,
-    };
-
-    // The plan: the bricks to march, in visibility order.
-    let mut stats = OutOfCoreStats {
-        level: lidx,
-        bricks: n_chunks,
-        ..Default::default()
-    };
-    let mut plan: Vec<(i64, Brick)> = Vec::new();
-    let to_world = |p: Vec3| level.origin + p * level.spacing;
-    let inv_spacing = Vec3::ONE / level.spacing;
-    let eye_v = (cam.eye - level.origin) * inv_spacing;
-    let ch = level.chunk.map(|c| c as f32);
-    for i in 0..n_chunks as u64 {
-        let c = [
-            i % counts[0],
-            (i / counts[0]) % counts[1],
-            i / (counts[0] * counts[1]),
-        ];
-        let (olo, ohi) = geo.own_box(c);
-        let Some(rect) = screen_rect(&cam, to_world(olo), to_world(ohi), w, h) else {
-            stats.culled += 1;
-            continue;
-        };
-        let chunks = geo.chunks_of(geo.data_box(c));
-        if chunks.iter().all(|&k| known_empty(&ranges[cidx(k)])) {
-            stats.empty += 1;
-            continue;
-        }
-        let key = if cam.is_orthographic() {
-            (0..3)
-                .map(|a| {
-                    if cam.forward[a] >= 0.0 {
-                        c[a] as i64
-                    } else {
-                        counts[a] as i64 - 1 - c[a] as i64
-                    }
-                })
-                .sum()
-        } else {
-            (0..3)
-                .map(|a| {
-                    let e = (eye_v[a] / ch[a]).floor() as i64;
-                    (c[a] as i64 - e).abs()
-                })
-                .sum()
-        };
-        plan.push((
-            key,
-            Brick {
-                chunk: c,
-                rect,
-                chunks,
-            },
-        ));
-    }
-    plan.sort_by_key(|b| b.0);
-    let plan: Vec<Brick> = plan.into_iter().map(|b| b.1).collect();
-
-    // Every pixel's ray.
-    let unit = levels[0].spacing.min_element();
-    let st = params.step * level.spacing.min_element();
-    let jitter = (params.jitter || params.method == Method::Jitter).then_some(params.seed);
-    let mut px: Vec<Px> = (0..w * h)
-        .into_par_iter()
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            let (o, d) = cam.ray(x, y);
-            let u = jitter.map_or(0.0, |s| crate::render::rng::pixel_sequence(s, x, y, 0));
-            Px::start(
-                (o - level.origin) * inv_spacing,
-                d * inv_spacing,
-                -d,
-                geo.sample_box,
-                st,
-                u,
-            )
-        })
-        .collect();
-    let hit = px.iter().filter(|p| p.live).count() as u64;
-
-    let lut = Lut::new(tf, params.step);
-    let q = lut.premultiplied(st / unit);
-    let (emission, absorption) = match params.optical {
-        crate::render::OpticalModel::AbsorptionOnly => (0.0, 1.0),
-        crate::render::OpticalModel::EmissionOnly => (1.0, 0.0),
-        crate::render::OpticalModel::EmissionAbsorption => (1.0, 1.0),
-    };
-    let stop = if params.ert < 1.0 {
-        params.ert
-    } else {
-        f32::INFINITY
-    };
-    let cache = ChunkCache::new(source, ooc.budget - brick_bytes);
-    let cursor = AtomicUsize::new(0);
-    let done = AtomicBool::new(false);
-    let mut counts_total = RowCount::default();
-    let mut error: Option<Error> = None;
-    let chunk_bytes = level.chunk_bytes(ty).max(1);
-    let lookahead = ((ooc.budget - brick_bytes) / (16 * chunk_bytes)).min(64) as usize;
-    std::thread::scope(|scope| {
-        if ooc.prefetch && lookahead > 0 {
-            let (plan, cache, cursor, done, ranges) = (&plan, &cache, &cursor, &done, &ranges);
-            scope.spawn(move || {
-                for (j, b) in plan.iter().enumerate() {
-                    while j > cursor.load(Ordering::Acquire) + lookahead {
-                        if done.load(Ordering::Acquire) {
-                            return;
-                        }
-                        std::thread::sleep(std::time::Duration::from_micros(200));
-                    }
-                    for &k in &b.chunks {
-                        if done.load(Ordering::Acquire) {
-                            return;
-                        }
-                        if matches!(ranges[cidx(k)], ChunkRange::Fill(_)) || cache.has((lidx, k)) {
-                            continue;
-                        }
-                        // An error is the render thread's to report.
-                        let _ = cache.get((lidx, k));
-                    }
-                }
-            });
-        }
-        let mut buf = BrickBuf::new(ty);
-        for (j, b) in plan.iter().enumerate() {
-            cursor.store(j, Ordering::Release);
-            if cancel.load(Ordering::Relaxed) {
-                error = Some(Error::Cancelled);
-                break;
-            }
-            let [x0, x1, y0, y1] = b.rect;
-            let any_live = (y0..y1).any(|y| {
-                let r = (y * w) as usize;
-                px[r + x0 as usize..r + x1 as usize].iter().any(|p| p.live)
-            });
-            if !any_live {
-                stats.occluded += 1;
-                progress(j + 1, plan.len());
+            let (olo, ohi) = geo.own_box(c);
+            let Some(rect) = screen_rect(&cam, to_world(olo), to_world(ohi), w, h) else {
+                stats.culled += 1;
+                continue;
+            };
+            let chunks = geo.chunks_of(geo.data_box(c));
+            if chunks.iter().all(|&k| known_empty(&ranges[cidx(k)])) {
+                stats.empty += 1;
                 continue;
             }
-            let t = Instant::now();
-            let dbox = geo.data_box(b.chunk);
-            match buf.assemble(&geo, dbox, &b.chunks, &ranges, cidx, &cache) {
-                Ok(Some((lo, hi))) if transparent(lo, hi) => {
-                    stats.wait_seconds += t.elapsed().as_secs_f64();
-                    stats.empty += 1;
-                    progress(j + 1, plan.len());
-                    continue;
-                }
-                Ok(None) => {
-                    stats.empty += 1;
-                    progress(j + 1, plan.len());
-                    continue;
-                }
-                Ok(_) => {}
-                Err(e) => {
-                    error = Some(e);
+            let key = if cam.is_orthographic() {
+                (0..3)
+                    .map(|a| {
+                        if cam.forward[a] >= 0.0 {
+                            c[a] as i64
+                        } else {
+                            counts[a] as i64 - 1 - c[a] as i64
+                        }
+                    })
+                    .sum()
+            } else {
+                (0..3)
+                    .map(|a| {
+                        let e = (eye_v[a] / ch[a]).floor() as i64;
+                        (c[a] as i64 - e).abs()
+                    })
+                    .sum()
+            };
+            plan.push((
+                key,
+                Brick {
+                    chunk: c,
+                    rect,
+                    chunks,
+                },
+            ));
+        }
+        plan.sort_by_key(|b| b.0);
+        let plan: Vec<Brick> = plan.into_iter().map(|b| b.1).collect();
+
+        // Every pixel's ray.
+        let unit = levels[0].spacing.min_element();
+        let st = params.step * level.spacing.min_element();
+        let jitter = (params.jitter || params.method == Method::Jitter).then_some(params.seed);
+        let mut px: Vec<Px> = (0..w * h)
+            .into_par_iter()
+            .map(|i| {
+                let (x, y) = (i % w, i / w);
+                let (o, d) = cam.ray(x, y);
+                let u = jitter.map_or(0.0, |s| crate::render::rng::pixel_sequence(s, x, y, 0));
+                Px::start(
+                    (o - level.origin) * inv_spacing,
+                    d * inv_spacing,
+                    -d,
+                    geo.sample_box,
+                    st,
+                    u,
+                )
+            })
+            .collect();
+        let hit = px.iter().filter(|p| p.live).count() as u64;
+
+        let lut = Lut::new(tf, params.step);
+        let q = lut.premultiplied(st / unit);
+        let (emission, absorption) = match params.optical {
+            crate::render::OpticalModel::AbsorptionOnly => (0.0, 1.0),
+            crate::render::OpticalModel::EmissionOnly => (1.0, 0.0),
+            crate::render::OpticalModel::EmissionAbsorption => (1.0, 1.0),
+        };
+        let stop = if params.ert < 1.0 {
+            params.ert
+        } else {
+            f32::INFINITY
+        };
+        let cache = &self.cache;
+        let cursor = AtomicUsize::new(0);
+        let done = AtomicBool::new(false);
+        let mut counts_total = RowCount::default();
+        let mut error: Option<Error> = None;
+        let chunk_bytes = level.chunk_bytes(ty).max(1);
+        let lookahead = ((ooc.budget - brick_bytes) / (16 * chunk_bytes)).min(64) as usize;
+        std::thread::scope(|scope| {
+            if ooc.prefetch && lookahead > 0 {
+                let (plan, cursor, done, ranges) = (&plan, &cursor, &done, &ranges);
+                scope.spawn(move || {
+                    for (j, b) in plan.iter().enumerate() {
+                        while j > cursor.load(Ordering::Acquire) + lookahead {
+                            if done.load(Ordering::Acquire) {
+                                return;
+                            }
+                            std::thread::sleep(std::time::Duration::from_micros(200));
+                        }
+                        for &k in &b.chunks {
+                            if done.load(Ordering::Acquire) {
+                                return;
+                            }
+                            if matches!(ranges[cidx(k)], ChunkRange::Fill(_))
+                                || cache.has((lidx, k))
+                            {
+                                continue;
+                            }
+                            // An error is the render thread's to report.
+                            let _ = cache.get((lidx, k));
+                        }
+                    }
+                });
+            }
+            let mut buf = BrickBuf::new(ty);
+            for (j, b) in plan.iter().enumerate() {
+                cursor.store(j, Ordering::Release);
+                if cancel.load(Ordering::Relaxed) {
+                    error = Some(Error::Cancelled);
                     break;
                 }
+                let [x0, x1, y0, y1] = b.rect;
+                let any_live = (y0..y1).any(|y| {
+                    let r = (y * w) as usize;
+                    px[r + x0 as usize..r + x1 as usize].iter().any(|p| p.live)
+                });
+                if !any_live {
+                    stats.occluded += 1;
+                    progress(j + 1, plan.len());
+                    continue;
+                }
+                let t = Instant::now();
+                let dbox = geo.data_box(b.chunk);
+                match buf.assemble(&geo, dbox, &b.chunks, &ranges, cidx, cache) {
+                    Ok(Some((lo, hi))) if transparent(lo, hi) => {
+                        stats.wait_seconds += t.elapsed().as_secs_f64();
+                        stats.empty += 1;
+                        progress(j + 1, plan.len());
+                        continue;
+                    }
+                    Ok(None) => {
+                        stats.empty += 1;
+                        progress(j + 1, plan.len());
+                        continue;
+                    }
+                    Ok(_) => {}
+                    Err(e) => {
+                        error = Some(e);
+                        break;
+                    }
+                }
+                stats.wait_seconds += t.elapsed().as_secs_f64();
+                let (olo, ohi) = geo.own_box(b.chunk);
+                let dims = std::array::from_fn(|a| (dbox.1[a] - dbox.0[a]) as usize);
+                let data_lo = Vec3::from(dbox.0.map(|v| v as f32));
+                // Samples outside the box around the brick's visible cells are
+                // transparent: the march skips them.
+                let Some((vlo, vhi)) = buf.visible_box(dims, &visible) else {
+                    stats.empty += 1;
+                    progress(j + 1, plan.len());
+                    continue;
+                };
+                let (olo, ohi) = (olo.max(vlo + data_lo), ohi.min(vhi + data_lo));
+                if (0..3).any(|a| olo[a] > ohi[a]) {
+                    stats.empty += 1;
+                    progress(j + 1, plan.len());
+                    continue;
+                }
+                stats.marched += 1;
+                let frame = FrameArgs {
+                    data_lo,
+                    own_lo: olo,
+                    own_hi: ohi,
+                    lut: &lut,
+                    q: &q,
+                    st,
+                    unit,
+                    inv_spacing,
+                    emission,
+                    absorption,
+                    stop,
+                    shading,
+                    window,
+                };
+                let c = buf.march(&frame, dims, &mut px, w, b.rect);
+                counts_total.samples += c.samples;
+                counts_total.shaded += c.shaded;
+                counts_total.terminated += c.terminated;
+                progress(j + 1, plan.len());
             }
-            stats.wait_seconds += t.elapsed().as_secs_f64();
-            stats.marched += 1;
-            let (olo, ohi) = geo.own_box(b.chunk);
-            let dims = std::array::from_fn(|a| (dbox.1[a] - dbox.0[a]) as usize);
-            let data_lo = Vec3::from(dbox.0.map(|v| v as f32));
-            let frame = FrameArgs {
-                data_lo,
-                own_lo: olo,
-                own_hi: ohi,
-                lut: &lut,
-                q: &q,
-                st,
-                unit,
-                inv_spacing,
-                emission,
-                absorption,
-                stop,
-                shading,
-                window,
-            };
-            let c = buf.march(&frame, dims, &mut px, w, b.rect);
-            counts_total.samples += c.samples;
-            counts_total.shaded += c.shaded;
-            counts_total.terminated += c.terminated;
-            progress(j + 1, plan.len());
+            done.store(true, Ordering::Release);
+        });
+        if let Some(e) = error {
+            return Err(e);
         }
-        done.store(true, Ordering::Release);
-    });
-    if let Some(e) = error {
-        return Err(e);
+        let bg = Vec3::from(params.background.map(srgb_to_linear));
+        let pixels = px
+            .par_iter()
+            .map(|p| {
+                let c = p.finish();
+                let rgb = c.truncate() + bg * (1.0 - c.w);
+                [rgb.x, rgb.y, rgb.z, c.w]
+            })
+            .collect();
+        let image = Image {
+            width: w,
+            height: h,
+            pixels,
+        };
+        stats.cache = cache.stats().since(&before);
+        stats.bytes_read = source.bytes_read() - read_before;
+        let rs = RenderStats {
+            rays: (w * h) as u64,
+            rays_hit: hit,
+            samples: counts_total.samples,
+            interpolations: counts_total.samples,
+            gradient_interpolations: 6 * counts_total.shaded,
+            early_terminated: counts_total.terminated,
+            capped_paths: 0,
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        Ok((image, rs, stats))
     }
-    let bg = Vec3::from(params.background.map(srgb_to_linear));
-    let pixels = px
-        .par_iter()
-        .map(|p| {
-            let c = p.finish();
-            let rgb = c.truncate() + bg * (1.0 - c.w);
-            [rgb.x, rgb.y, rgb.z, c.w]
-        })
-        .collect();
-    let image = Image {
-        width: w,
-        height: h,
-        pixels,
-    };
-    stats.cache = cache.stats();
-    stats.bytes_read = source.bytes_read();
-    let rs = RenderStats {
-        rays: (w * h) as u64,
-        rays_hit: hit,
-        samples: counts_total.samples,
-        interpolations: counts_total.samples,
-        gradient_interpolations: 6 * counts_total.shaded,
-        early_terminated: counts_total.terminated,
-        capped_paths: 0,
-        seconds: start.elapsed().as_secs_f64(),
-    };
-    Ok((image, rs, stats))
 }
 
 /// The pixel rectangle `[x0, x1, y0, y1]` the box `[lo, hi]` (world) may
@@ -674,6 +747,21 @@ impl BrickBuf {
         }
     }
 
+    /// The box (voxel coordinates of the buffer) around the cells whose
+    /// values may show; `None` when none may.
+    fn visible_box(
+        &self,
+        dims: [usize; 3],
+        visible: &impl Fn(f32, f32) -> bool,
+    ) -> Option<(Vec3, Vec3)> {
+        match self {
+            BrickBuf::U8(v) => visible_cells(v, dims, visible),
+            BrickBuf::U16(v) => visible_cells(v, dims, visible),
+            BrickBuf::I16(v) => visible_cells(v, dims, visible),
+            BrickBuf::F32(v) => visible_cells(v, dims, visible),
+        }
+    }
+
     fn march(
         &self,
         a: &FrameArgs<'_>,
@@ -754,6 +842,60 @@ fn fill_box<T: Stored>(
         }
     }
     Ok(range)
+}
+
+/// Edge of the cells [`visible_cells`] tests, in voxels.
+const CELL: usize = 4;
+
+/// The box around the visible cells of `data`: each cell of [`CELL`]³
+/// voxels is tested by the range of the voxels a sample inside it
+/// interpolates (its own and the next layer on each axis).
+fn visible_cells<T: Voxel>(
+    data: &[T],
+    d: [usize; 3],
+    visible: &impl Fn(f32, f32) -> bool,
+) -> Option<(Vec3, Vec3)> {
+    let n: [usize; 3] = d.map(|v| v.div_ceil(CELL));
+    let mut lo = [usize::MAX; 3];
+    let mut hi = [0usize; 3];
+    for cz in 0..n[2] {
+        for cy in 0..n[1] {
+            for cx in 0..n[0] {
+                let c = [cx, cy, cz];
+                // Inside the box already: nothing to learn.
+                if lo[0] != usize::MAX && (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a]) {
+                    continue;
+                }
+                let a: [usize; 3] = std::array::from_fn(|i| c[i] * CELL);
+                let b: [usize; 3] = std::array::from_fn(|i| (a[i] + CELL + 1).min(d[i]));
+                let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+                for z in a[2]..b[2] {
+                    for y in a[1]..b[1] {
+                        let r = (z * d[1] + y) * d[0];
+                        for v in &data[r + a[0]..r + b[0]] {
+                            let v = v.to_f32();
+                            mn = mn.min(v);
+                            mx = mx.max(v);
+                        }
+                    }
+                }
+                if mn <= mx && visible(mn, mx) {
+                    for i in 0..3 {
+                        lo[i] = lo[i].min(c[i]);
+                        hi[i] = hi[i].max(c[i]);
+                    }
+                }
+            }
+        }
+    }
+    if lo[0] == usize::MAX {
+        return None;
+    }
+    let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
+    let h = Vec3::from(std::array::from_fn::<f32, 3, _>(|i| {
+        ((hi[i] + 1) * CELL) as f32
+    }));
+    Some((l, h))
 }
 
 fn march_rows<T: Voxel>(
