@@ -17,6 +17,7 @@ fn main() {
         Command::Bench(a) => cmd::bench::run(*a),
         Command::Info(a) => cmd::info::run(a),
         Command::Compare(a) => cmd::compare::run(a),
+        Command::Convert(a) => cmd::convert::run(*a),
         Command::Cloud(a) => cmd::cloud::run(*a),
         Command::Presets => {
             cmd::presets::run();

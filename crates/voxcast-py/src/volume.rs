@@ -101,7 +101,7 @@ pub fn from_array(
 /// Reads a volume with the library's readers (every format `voxcast render`
 /// reads, or `builtin:NAME`).
 #[pyfunction]
-#[pyo3(signature = (path, *, raw_dims=None, raw_type=None, raw_big_endian=false, raw_header_bytes=0, spacing=None, variable=None, time=None))]
+#[pyo3(signature = (path, *, raw_dims=None, raw_type=None, raw_big_endian=false, raw_header_bytes=0, spacing=None, variable=None, time=None, level=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn open(
     py: Python<'_>,
@@ -113,6 +113,7 @@ pub fn open(
     spacing: Option<[f32; 3]>,
     variable: Option<String>,
     time: Option<f64>,
+    level: Option<usize>,
 ) -> PyResult<Volume> {
     let raw = match (raw_dims, raw_type) {
         (None, None) => None,
@@ -140,6 +141,7 @@ pub fn open(
         spacing,
         variable,
         time,
+        level,
     };
     let is_builtin = scene.input.path.starts_with(voxcast::scene::BUILTIN_PREFIX);
     let glob = scene.input.path.contains(['*', '?', '[']);

@@ -3,7 +3,7 @@
 //! file path is accepted.
 
 use crate::error::{Error, Result};
-use crate::volume::{Volume, VoxelData};
+use crate::volume::{ScalarType, Volume, VoxelData};
 use glam::Vec3;
 
 /// Prefix of built-in volume names: `builtin:demo`.
@@ -24,7 +24,16 @@ pub const BUILTINS: &[(&str, &str)] = &[
         "plume",
         "128×128×160 f32: a synthetic smoke plume, rising and spreading, with turbulent detail",
     ),
+    (
+        "fractal",
+        "256³ u8: a Menger sponge, holes at every scale down to the voxel, brighter towards the centre (any size with `convert --dims`)",
+    ),
 ];
+
+/// The built-in volumes that are a function of position and so can be
+/// generated at any size and type, slab by slab (`convert builtin:NAME
+/// --dims X,Y,Z --type T`).
+pub const SIZED: &[&str] = &["demo", "sphere", "marschner-lobb", "fractal"];
 
 /// Generates the built-in volume `name`.
 pub fn open(name: &str) -> Result<Volume> {
@@ -33,6 +42,7 @@ pub fn open(name: &str) -> Result<Volume> {
         "marschner-lobb" => marschner_lobb(41)?,
         "sphere" => sphere(64)?,
         "plume" => plume([128, 128, 160])?,
+        "fractal" => sized("fractal", [256; 3], ScalarType::U8)?,
         _ => {
             let names: Vec<&str> = BUILTINS.iter().map(|b| b.0).collect();
             return Err(Error::invalid(format!(
@@ -43,6 +53,139 @@ pub fn open(name: &str) -> Result<Volume> {
     };
     v.name = Some(format!("{PREFIX}{name}"));
     Ok(v)
+}
+
+/// Built-in `name` (one of [`SIZED`]) at `dims` voxels of `ty`, spanning
+/// the same shape whatever the size (values 0…1 scaled to the type's range:
+/// 255, 65535, 32767, or 1 for f32).
+pub fn sized(name: &str, dims: [usize; 3], ty: ScalarType) -> Result<Volume> {
+    let d = dims.map(|v| v as u64);
+    crate::volume::checked_voxel_count(d).map_err(Error::invalid)?;
+    let data = slab(name, d, ty, 0, d[2])?;
+    let mut v = Volume::new(dims, Vec3::ONE, Vec3::ZERO, data)?;
+    v.name = Some(format!("{PREFIX}{name}"));
+    Ok(v)
+}
+
+/// Slices `z0..z1` of built-in `name` (one of [`SIZED`]) at `dims` voxels
+/// of `ty`, x fastest: for writing volumes larger than memory.
+pub fn slab(name: &str, dims: [u64; 3], ty: ScalarType, z0: u64, z1: u64) -> Result<VoxelData> {
+    use rayon::prelude::*;
+    let f: fn([u64; 3], [u64; 3]) -> f32 = match name {
+        "demo" => |d, i| demo_at(unit3(d, i)),
+        "sphere" => |d, i| sphere_at(unit3(d, i)),
+        "marschner-lobb" => |d, i| marschner_lobb_at(unit3(d, i)),
+        "fractal" => fractal_at,
+        _ => {
+            return Err(Error::invalid(format!(
+                "{PREFIX}{name}: not generated at other sizes (these are: {})",
+                SIZED.join(", ")
+            )))
+        }
+    };
+    if dims.contains(&0) || z0 > z1 || z1 > dims[2] {
+        return Err(Error::invalid(format!(
+            "{PREFIX}{name}: slices {z0}…{z1} of {}×{}×{}",
+            dims[0], dims[1], dims[2]
+        )));
+    }
+    let area = (dims[0] * dims[1]) as usize;
+    let n = area * (z1 - z0) as usize;
+    let at = move |idx: usize| {
+        let i = [
+            (idx % dims[0] as usize) as u64,
+            (idx / dims[0] as usize % dims[1] as usize) as u64,
+            z0 + (idx / area) as u64,
+        ];
+        f(dims, i).clamp(0.0, 1.0)
+    };
+    macro_rules! go {
+        ($var:ident, $scale:expr) => {
+            VoxelData::$var(
+                (0..n)
+                    .into_par_iter()
+                    .map(|i| (at(i) * $scale + 0.5) as _)
+                    .collect::<Vec<_>>()
+                    .into(),
+            )
+        };
+    }
+    Ok(match ty {
+        ScalarType::U8 => go!(U8, 255.0),
+        ScalarType::U16 => go!(U16, 65535.0),
+        ScalarType::I16 => go!(I16, 32767.0),
+        ScalarType::F32 => {
+            VoxelData::F32((0..n).into_par_iter().map(at).collect::<Vec<_>>().into())
+        }
+    })
+}
+
+/// Voxel `i` of a grid of `d` in [−1, 1]³ (an axis of one voxel at 0).
+fn unit3(d: [u64; 3], i: [u64; 3]) -> Vec3 {
+    let u = |a: usize| {
+        if d[a] > 1 {
+            i[a] as f32 / (d[a] - 1) as f32 * 2.0 - 1.0
+        } else {
+            0.0
+        }
+    };
+    Vec3::new(u(0), u(1), u(2))
+}
+
+/// A Menger sponge: at each level (down to the voxel) the cube is cut in
+/// 3×3×3 and the centre and face-centre cells removed; what stays is
+/// brighter towards the centre. Integer arithmetic on the voxel index.
+fn fractal_at(d: [u64; 3], i: [u64; 3]) -> f32 {
+    let n = d.iter().copied().max().unwrap_or(1);
+    // Levels until a cell is smaller than a voxel.
+    let mut levels = 0;
+    let mut p = 1u64;
+    while p < n && levels < 12 {
+        p *= 3;
+        levels += 1;
+    }
+    let mut scale = 1u64;
+    for _ in 0..levels {
+        scale *= 3;
+        let ones = (0..3)
+            .filter(|&a| (i[a] * scale / d[a].max(1)) % 3 == 1)
+            .count();
+        if ones >= 2 {
+            return 0.0;
+        }
+    }
+    let c = unit3(d, i);
+    0.3 + 0.7 * (1.0 - c.length() / 3f32.sqrt())
+}
+
+fn demo_at(p: Vec3) -> f32 {
+    let r = p.length();
+    // Core: a soft glowing ball.
+    let core = 1.0 - smoothstep(0.0, 0.32, r);
+    // Shell of radius 0.62 cut by a gyroid lattice into a cage.
+    let shell = 1.0 - smoothstep(0.02, 0.06, (r - 0.62).abs());
+    let q = p * 9.0;
+    let gyroid = q.x.sin() * q.y.cos() + q.y.sin() * q.z.cos() + q.z.sin() * q.x.cos();
+    let cage = shell * smoothstep(-0.1, 0.25, gyroid);
+    // Torus tilted 25° about x, major radius 0.8, minor 0.09.
+    let (s, c) = 25f32.to_radians().sin_cos();
+    let t = Vec3::new(p.x, c * p.y - s * p.z, s * p.y + c * p.z);
+    let ring_d = ((t.x * t.x + t.y * t.y).sqrt() - 0.8).hypot(t.z);
+    let ring = 1.0 - smoothstep(0.06, 0.1, ring_d);
+    (0.45 * ring).max(0.7 * cage).max(core)
+}
+
+fn sphere_at(p: Vec3) -> f32 {
+    1.0 - smoothstep(0.0, 0.8, p.length())
+}
+
+fn marschner_lobb_at(p: Vec3) -> f32 {
+    const FM: f32 = 6.0;
+    const ALPHA: f32 = 0.25;
+    use std::f32::consts::PI;
+    let r = (p.x * p.x + p.y * p.y).sqrt();
+    let rho_r = (2.0 * PI * FM * (PI * r / 2.0).cos()).cos();
+    (1.0 - (PI * p.z / 2.0).sin() + ALPHA * (1.0 + rho_r)) / (2.0 * (1.0 + ALPHA))
 }
 
 fn smoothstep(e0: f32, e1: f32, x: f32) -> f32 {
@@ -69,37 +212,16 @@ fn to_u8(n: usize, f: impl Fn(Vec3) -> f32 + Sync) -> Result<Volume> {
 }
 
 fn demo(n: usize) -> Result<Volume> {
-    to_u8(n, |p| {
-        let r = p.length();
-        // Core: a soft glowing ball.
-        let core = 1.0 - smoothstep(0.0, 0.32, r);
-        // Shell of radius 0.62 cut by a gyroid lattice into a cage.
-        let shell = 1.0 - smoothstep(0.02, 0.06, (r - 0.62).abs());
-        let q = p * 9.0;
-        let gyroid = q.x.sin() * q.y.cos() + q.y.sin() * q.z.cos() + q.z.sin() * q.x.cos();
-        let cage = shell * smoothstep(-0.1, 0.25, gyroid);
-        // Torus tilted 25° about x, major radius 0.8, minor 0.09.
-        let (s, c) = 25f32.to_radians().sin_cos();
-        let t = Vec3::new(p.x, c * p.y - s * p.z, s * p.y + c * p.z);
-        let ring_d = ((t.x * t.x + t.y * t.y).sqrt() - 0.8).hypot(t.z);
-        let ring = 1.0 - smoothstep(0.06, 0.1, ring_d);
-        (0.45 * ring).max(0.7 * cage).max(core)
-    })
+    to_u8(n, demo_at)
 }
 
 fn sphere(n: usize) -> Result<Volume> {
-    to_u8(n, |p| 1.0 - smoothstep(0.0, 0.8, p.length()))
+    to_u8(n, sphere_at)
 }
 
 fn marschner_lobb(n: usize) -> Result<Volume> {
-    const FM: f32 = 6.0;
-    const ALPHA: f32 = 0.25;
-    use std::f32::consts::PI;
     Volume::from_fn([n, n, n], Vec3::ONE, |i, j, k| {
-        let (x, y, z) = (unit(n, i), unit(n, j), unit(n, k));
-        let r = (x * x + y * y).sqrt();
-        let rho_r = (2.0 * PI * FM * (PI * r / 2.0).cos()).cos();
-        (1.0 - (PI * z / 2.0).sin() + ALPHA * (1.0 + rho_r)) / (2.0 * (1.0 + ALPHA))
+        marschner_lobb_at(Vec3::new(unit(n, i), unit(n, j), unit(n, k)))
     })
 }
 
@@ -187,5 +309,34 @@ mod tests {
         assert!(open("nope").is_err());
         let ml = open("marschner-lobb").unwrap();
         assert!(ml.stats().min >= 0.0 && ml.stats().max <= 1.0);
+    }
+
+    #[test]
+    fn sized_builtins_match_the_fixed_ones_and_slabs_tile_the_volume() {
+        // The same function at the same size and type: the same voxels.
+        let demo = sized("demo", [128; 3], ScalarType::U8).unwrap();
+        assert_eq!(demo.data(), open("demo").unwrap().data());
+        // Slabs concatenate to the whole volume.
+        let d = [27u64, 20, 13];
+        let whole = slab("fractal", d, ScalarType::U16, 0, 13).unwrap();
+        let mut parts = Vec::new();
+        for (a, b) in [(0, 5), (5, 6), (6, 13)] {
+            let s = slab("fractal", d, ScalarType::U16, a, b).unwrap();
+            parts.extend((0..s.len()).map(|i| s.get(i)));
+        }
+        assert_eq!(
+            parts,
+            (0..whole.len()).map(|i| whole.get(i)).collect::<Vec<_>>()
+        );
+        // The sponge: the centre cell of a 27³ cube is a hole, a corner solid.
+        let f = sized("fractal", [27; 3], ScalarType::F32).unwrap();
+        assert_eq!(f.value(13, 13, 13), 0.0);
+        assert!(f.value(0, 0, 0) > 0.2);
+        // 20 of 27 cells stay at each of the 3 levels.
+        let solid = (0..f.data().len())
+            .filter(|&i| f.data().get(i) > 0.0)
+            .count();
+        assert_eq!(solid, 20 * 20 * 20);
+        assert!(slab("plume", d, ScalarType::U8, 0, 1).is_err());
     }
 }

@@ -74,6 +74,8 @@ struct InputFields {
     variable: Option<String>,
     #[serde(default)]
     time: Option<f64>,
+    #[serde(default)]
+    level: Option<usize>,
 }
 
 impl From<InputFields> for InputSpec {
@@ -85,6 +87,7 @@ impl From<InputFields> for InputSpec {
                 spacing: f.spacing,
                 variable: f.variable,
                 time: f.time,
+                level: f.level,
             },
         }
     }

@@ -8,6 +8,7 @@ mod bench;
 mod bench_frames;
 mod cloud;
 mod compare;
+mod convert;
 mod device;
 mod info;
 mod render;
@@ -20,6 +21,7 @@ pub use bench::BenchArgs;
 pub use bench_frames::BenchFramesArgs;
 pub use cloud::CloudArgs;
 pub use compare::CompareArgs;
+pub use convert::ConvertArgs;
 pub use device::DeviceArg;
 pub use info::InfoArgs;
 pub use render::RenderArgs;
@@ -65,6 +67,9 @@ pub enum Command {
     Info(InfoArgs),
     /// Compare two images: PSNR (dB) and SSIM.
     Compare(CompareArgs),
+    /// Write any volume (or a built-in one of any size) as an OME-Zarr multiscale pyramid.
+    #[command(after_long_help = convert::CONVERT_HELP)]
+    Convert(Box<ConvertArgs>),
     /// List transfer-function presets and built-in volumes.
     Presets,
     /// Simulate smoke (a fire in a room, office or corridor) into a frame folder.

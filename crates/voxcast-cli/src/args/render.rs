@@ -76,6 +76,20 @@ pub struct RenderArgs {
     /// has).
     #[arg(long, value_enum, default_value = "cpu", help_heading = "Device", long_help = device_help(""))]
     pub device: DeviceArg,
+    /// For a chunked store (OME-Zarr): the most decoded voxels held at once
+    /// (e.g. 512MiB, 2GiB; default half the memory available). A level that
+    /// fits is read whole and rendered as usual; a larger one is rendered
+    /// out of core, chunk by chunk, never holding more than this.
+    #[arg(long, value_name = "BYTES", value_parser = parse_budget, help_heading = "Large volumes")]
+    pub memory_budget: Option<u64>,
+    /// Render a chunked store out of core even where its level fits the
+    /// budget.
+    #[arg(long, help_heading = "Large volumes")]
+    pub out_of_core: bool,
+}
+
+fn parse_budget(s: &str) -> Result<u64, String> {
+    voxcast::render::outofcore::parse_bytes(s)
 }
 
 impl RenderArgs {

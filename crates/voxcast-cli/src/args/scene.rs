@@ -40,6 +40,11 @@ pub struct OpenArgs {
     /// Time (in the file's units, e.g. seconds) to read from a time series.
     #[arg(long, value_name = "T", help_heading = "Input")]
     pub time: Option<f64>,
+    /// Resolution level of a multi-resolution store (OME-Zarr), 0 the
+    /// finest. `render` otherwise picks the coarsest level whose voxel is no
+    /// larger than a pixel; `info` lists the levels.
+    #[arg(long, value_name = "N", help_heading = "Input")]
+    pub level: Option<usize>,
 }
 
 impl OpenArgs {
@@ -85,6 +90,7 @@ impl OpenArgs {
             spacing,
             variable: self.variable.clone(),
             time: self.time,
+            level: self.level,
         })
     }
 }

@@ -14,6 +14,15 @@ use voxcast_gpu::Device;
 
 pub fn run(a: RenderArgs) -> Result<()> {
     let mut scene = a.scene()?;
+    // A chunked store: the level the camera needs, read whole if it fits
+    // the memory budget, else rendered out of core.
+    match super::render_chunked::plan(&a, &scene)? {
+        Some(super::render_chunked::Plan::OutOfCore(store, ooc)) => {
+            return super::render_chunked::run(&a, &scene, &store, &ooc)
+        }
+        Some(super::render_chunked::Plan::InCore(level)) => scene.input.options.level = Some(level),
+        None => {}
+    }
     let out = a
         .output
         .clone()

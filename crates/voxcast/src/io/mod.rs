@@ -25,6 +25,7 @@ pub mod util;
 pub mod vdb;
 pub mod vtk;
 pub mod wrf;
+pub mod zarr;
 
 pub use series::{Series, SeriesWriter};
 
@@ -63,6 +64,10 @@ pub struct OpenOptions {
     /// The time to read from a time series (the file's units, e.g. seconds).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time: Option<f64>,
+    /// The resolution level of a multi-resolution store (OME-Zarr), 0 the
+    /// finest.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub level: Option<usize>,
 }
 
 /// The formats voxcast reads.
@@ -88,6 +93,8 @@ pub enum Format {
     MitsubaVol,
     /// WRF output (NetCDF-4 / NetCDF classic; needs the `wrf` feature).
     Wrf,
+    /// A Zarr v2/v3 store or array, OME-Zarr multiscales.
+    Zarr,
 }
 
 /// Decides the format of `path` from its kind (folder, glob), extension and
@@ -102,6 +109,9 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     }
     let meta = std::fs::metadata(path).map_err(|e| Error::io(path, e))?;
     if meta.is_dir() {
+        if zarr::is_zarr(path) {
+            return Ok(Format::Zarr);
+        }
         if crate::io::Series::is_frame_folder(path) {
             return Ok(Format::Series);
         }
@@ -180,7 +190,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .hdr/.img .mgh .mgz .mnc .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .hdr/.img .mgh .mgz .mnc .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, Zarr/OME-Zarr folders, PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }
@@ -207,6 +217,7 @@ pub fn open(path: &Path, opts: &OpenOptions) -> Result<Volume> {
             s.load(i, opts)?
         }
         Format::MitsubaVol => mitsuba_vol::read(path)?,
+        Format::Zarr => zarr::read(path, opts)?,
     };
     if let Some(s) = opts.spacing {
         vol.set_spacing(Vec3::from(s))?;

@@ -1,0 +1,202 @@
+//! `voxcast render STORE.zarr`: a chunked store is read whole when the
+//! level to render fits the memory budget (then any method and device
+//! work), and rendered out of core otherwise ([`voxcast::render::outofcore`]).
+
+use crate::args::RenderArgs;
+use anyhow::{bail, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::{IsTerminal, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+use voxcast::camera::Camera;
+use voxcast::files::Outputs;
+use voxcast::io::zarr::ZarrStore;
+use voxcast::render::outofcore::{self, human_bytes, OutOfCoreParams};
+use voxcast::scene::Scene;
+use voxcast::volume::ChunkedSource;
+
+/// What to do with a chunked input.
+pub enum Plan {
+    /// Read this level whole and render as usual.
+    InCore(usize),
+    /// Render out of core.
+    OutOfCore(Box<ZarrStore>, OutOfCoreParams),
+}
+
+/// For a chunked store as input: the level the camera needs, and whether
+/// it fits the budget. `None` for any other input.
+pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
+    let path = Path::new(&scene.input.path);
+    if scene.input.path.starts_with(voxcast::builtin::PREFIX) || !voxcast::io::zarr::is_zarr(path) {
+        return Ok(None);
+    }
+    let store = ZarrStore::open_with(path, &scene.input.options)?;
+    let levels = store.levels();
+    let budget = a.memory_budget.unwrap_or_else(outofcore::default_budget);
+    let (lo, hi) = outofcore::world_bounds(levels);
+    let cam = Camera::fit(
+        &scene.camera,
+        lo,
+        hi,
+        scene.render.width,
+        scene.render.height,
+    );
+    let level = match scene.input.options.level {
+        Some(l) if l >= levels.len() => bail!(
+            "--level {l}: {} has levels 0…{}",
+            path.display(),
+            levels.len() - 1
+        ),
+        Some(l) => l,
+        None => outofcore::choose_level(levels, &cam, 1.0),
+    };
+    let bytes = levels[level].bytes(store.scalar_type());
+    if !a.out_of_core && bytes <= budget {
+        if !a.quiet && levels.len() > 1 {
+            let d = levels[level].dims;
+            eprintln!(
+                "{}: level {level} of 0…{} ({}×{}×{}, {}) {}; it fits the memory budget ({}): reading it whole",
+                path.display(),
+                levels.len() - 1,
+                d[0],
+                d[1],
+                d[2],
+                human_bytes(bytes),
+                if scene.input.options.level.is_some() {
+                    "as asked"
+                } else {
+                    "has voxels no larger than a pixel"
+                },
+                human_bytes(budget)
+            );
+        }
+        return Ok(Some(Plan::InCore(level)));
+    }
+    let ooc = OutOfCoreParams {
+        budget,
+        level: Some(level),
+        ..Default::default()
+    };
+    Ok(Some(Plan::OutOfCore(Box::new(store), ooc)))
+}
+
+/// Renders `store` out of core and writes the outputs `a` asks for.
+pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCoreParams) -> Result<()> {
+    if a.quality.is_some() {
+        bail!("--quality: not available out of core (the pilot renders the whole volume); give --step, or a --memory-budget the level fits in");
+    }
+    if !matches!(a.device, crate::args::DeviceArg::Cpu) {
+        bail!("--device: out of core, voxcast renders on the CPU; leave --device at cpu, or give a --memory-budget the level fits in");
+    }
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("render.png"));
+    let mut outputs = Outputs::new([&scene.input.path]);
+    outputs.plan("-o", &out, &["png", "exr"])?;
+    outputs.plan_optional("--float-out", a.float_out.as_deref(), &["exr"])?;
+    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
+    outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
+    let quiet = a.quiet;
+    // The coarsest level stands in for the volume where the transfer
+    // function and the window need its values (auto, histograms).
+    let t_load = Instant::now();
+    let levels = store.levels();
+    let coarsest = levels.len() - 1;
+    let proxy = store.read_level(coarsest)?;
+    let prepared = scene.prepare_with(proxy)?;
+    outputs.check()?;
+    if prepared.geometry.is_some() {
+        bail!("--geometry: opaque geometry is not rendered out of core; render without it, or give a --memory-budget the level fits in");
+    }
+    let level = ooc.level.unwrap_or(0);
+    let l = &levels[level];
+    if !quiet {
+        eprintln!(
+            "opened {} — {} levels, level 0 {}×{}×{} {} ({}); rendering level {level} ({}×{}×{}, chunks {}×{}×{}) out of core within {}; window [{}, {}] from level {coarsest} ({:.2} s)",
+            scene.input.path,
+            levels.len(),
+            levels[0].dims[0],
+            levels[0].dims[1],
+            levels[0].dims[2],
+            store.scalar_type(),
+            human_bytes(levels[0].bytes(store.scalar_type())),
+            l.dims[0],
+            l.dims[1],
+            l.dims[2],
+            l.chunk[0],
+            l.chunk[1],
+            l.chunk[2],
+            human_bytes(ooc.budget),
+            prepared.window[0],
+            prepared.window[1],
+            t_load.elapsed().as_secs_f64()
+        );
+    }
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("bricks {bar:40.cyan/blue} {pos}/{len} {elapsed}<{eta}")
+            .expect("valid template"),
+    );
+    if std::io::stderr().is_terminal() && !quiet {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+    }
+    let progress = |done: usize, total: usize| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    };
+    let (image, stats, oo) = outofcore::render_chunked(
+        store,
+        &prepared.tf,
+        prepared.window,
+        &scene.camera,
+        &scene.render,
+        ooc,
+        &progress,
+        &AtomicBool::new(false),
+    )?;
+    bar.finish_and_clear();
+    image.write_into(&mut outputs, &out)?;
+    if let Some(f) = &a.float_out {
+        image.write_exr_into(&mut outputs, f)?;
+    }
+    if let Some(f) = &a.stats_json {
+        let mut value = serde_json::to_value(stats)?;
+        if let serde_json::Value::Object(m) = &mut value {
+            m.insert("device".into(), "cpu, out of core".into());
+            m.insert("out_of_core".into(), serde_json::to_value(oo)?);
+            m.insert("budget_bytes".into(), ooc.budget.into());
+        }
+        let json = serde_json::to_string_pretty(&value)?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
+    }
+    if let Some(f) = &a.save_scene {
+        let text = scene.resolved(&prepared).to_toml(f)?;
+        outputs.write(f, |w| w.write_all(text.as_bytes()))?;
+    }
+    outputs.commit()?;
+    if !quiet {
+        eprintln!(
+            "wrote {} ({}×{}) in {:.3} s out of core: level {}, {} of {} bricks marched ({} empty, {} off-image, {} hidden), read {} from the store ({} decoded), cache hits {:.0} %, peak {} of {}; {} samples ({:.1} M/s)",
+            out.display(),
+            image.width,
+            image.height,
+            stats.seconds,
+            oo.level,
+            oo.marched,
+            oo.bricks,
+            oo.empty,
+            oo.culled,
+            oo.occluded,
+            human_bytes(oo.bytes_read),
+            human_bytes(oo.cache.decoded_bytes),
+            100.0 * oo.hit_rate(),
+            human_bytes(oo.cache.peak_bytes),
+            human_bytes(ooc.budget),
+            stats.samples,
+            stats.samples_per_second() / 1e6,
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,313 @@
+use super::write::{level_dims, write_volume, Compression, WriteOptions, ZarrFormat};
+use super::*;
+use crate::volume::chunked::downsample2;
+use crate::volume::MemorySource;
+
+/// A u16 volume of odd dims with structure and an empty corner (x < 8,
+/// y < 8: zero), so some chunks hold only the fill value.
+fn sample(dims: [usize; 3]) -> Volume {
+    let mut v = Volume::from_fn(dims, Vec3::new(0.5, 0.75, 1.25), |i, j, k| {
+        if i < 8 && j < 8 {
+            0.0
+        } else {
+            ((i * 37 + j * 11 + k * 5) % 1000) as f32 + 1.0
+        }
+    })
+    .unwrap();
+    v = Volume::new(
+        v.dims(),
+        v.spacing(),
+        Vec3::new(10.0, -2.0, 3.0),
+        VoxelData::U16(
+            (0..v.data().len())
+                .map(|i| v.data().get(i) as u16)
+                .collect::<Vec<_>>()
+                .into(),
+        ),
+    )
+    .unwrap();
+    v
+}
+
+fn opts(format: ZarrFormat, compression: Compression) -> WriteOptions {
+    WriteOptions {
+        chunk: [8, 8, 4],
+        levels: None,
+        format,
+        compression,
+    }
+}
+
+#[test]
+fn v2_and_v3_round_trip_every_level_exactly() {
+    let vol = sample([37, 29, 23]);
+    for format in [ZarrFormat::V2, ZarrFormat::V3] {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.zarr");
+        let st = write_volume(&vol, &p, &opts(format, Compression::Zstd(3)), &|_, _| {}).unwrap();
+        assert!(st.chunks_empty > 0, "{st:?}");
+        let s = ZarrStore::open(&p).unwrap();
+        assert_eq!(
+            s.info().zarr_format,
+            if format == ZarrFormat::V2 { 2 } else { 3 }
+        );
+        assert_eq!(
+            s.info().ome_version.as_deref(),
+            Some(if format == ZarrFormat::V2 {
+                "0.4"
+            } else {
+                "0.5"
+            })
+        );
+        // Levels until one fits a chunk: 37×29×23 → 19×15×12 → 10×8×6 → 5×4×3.
+        let dims: Vec<[u64; 3]> = s.levels().iter().map(|l| l.dims).collect();
+        assert_eq!(
+            dims,
+            vec![[37, 29, 23], [19, 15, 12], [10, 8, 6], [5, 4, 3]]
+        );
+        assert_eq!(
+            dims,
+            level_dims([37, 29, 23], &opts(format, Compression::None))
+        );
+        let back = s.read_level(0).unwrap();
+        assert_eq!(back.data(), vol.data(), "{format:?}");
+        assert_eq!(back.spacing(), vol.spacing());
+        assert_eq!(back.origin(), vol.origin());
+        // Every level is the 2×2×2 mean of the one before, in the same
+        // world box (origin at the first block's centre).
+        let mut expect = vol.clone();
+        for l in 1..dims.len() {
+            expect = downsample2(&expect).unwrap();
+            let got = s.read_level(l).unwrap();
+            assert_eq!(got.data(), expect.data(), "{format:?} level {l}");
+            assert!((got.spacing() - expect.spacing()).length() < 1e-6);
+            assert!(
+                (got.origin() - expect.origin()).length() < 1e-5,
+                "level {l}"
+            );
+        }
+        // Chunk reads give the chunk's box; the empty corner is known
+        // without reading it, the rest by its range.
+        assert_eq!(s.chunk_range(0, [0, 0, 0]), ChunkRange::Fill(0.0));
+        let c = s.read_chunk(0, [0, 0, 0]).unwrap();
+        assert!((0..c.len()).all(|i| c.get(i) == 0.0));
+        match s.chunk_range(0, [2, 1, 3]) {
+            ChunkRange::Range(lo, hi) => assert!(lo >= 1.0 && hi <= 1000.0 && lo < hi),
+            r => panic!("{r:?}"),
+        }
+        let c = s.read_chunk(0, [4, 3, 5]).unwrap(); // the corner chunk: 5×5×3
+        assert_eq!(c.len(), 5 * 5 * 3);
+        assert_eq!(c.get(0), vol.value(32, 24, 20));
+        assert_eq!(s.value_range(), Some([vol.stats().min, vol.stats().max]));
+        assert!(s.bytes_read() > 0);
+    }
+}
+
+#[test]
+fn every_codec_and_type_round_trips() {
+    let base = sample([20, 17, 9]);
+    let types = [
+        VoxelData::U8(
+            (0..base.data().len())
+                .map(|i| (base.data().get(i) as u32 % 256) as u8)
+                .collect::<Vec<_>>()
+                .into(),
+        ),
+        VoxelData::I16(
+            (0..base.data().len())
+                .map(|i| base.data().get(i) as i16 - 500)
+                .collect::<Vec<_>>()
+                .into(),
+        ),
+        VoxelData::F32(
+            (0..base.data().len())
+                .map(|i| base.data().get(i) * 0.25 - 3.0)
+                .collect::<Vec<_>>()
+                .into(),
+        ),
+    ];
+    for data in types {
+        let vol = Volume::new(base.dims(), base.spacing(), base.origin(), data).unwrap();
+        for c in [
+            Compression::Zstd(1),
+            Compression::Blosc(5),
+            Compression::Gzip(1),
+            Compression::None,
+        ] {
+            for format in [ZarrFormat::V2, ZarrFormat::V3] {
+                let dir = tempfile::tempdir().unwrap();
+                let p = dir.path().join("t.zarr");
+                write_volume(&vol, &p, &opts(format, c), &|_, _| {}).unwrap();
+                let back = read(&p, &OpenOptions::default()).unwrap();
+                assert_eq!(
+                    back.data(),
+                    vol.data(),
+                    "{:?} {c:?} {format:?}",
+                    vol.scalar_type()
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_missing_chunk_reads_as_fill_and_a_corrupt_one_is_named() {
+    let vol = sample([24, 24, 8]);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("m.zarr");
+    write_volume(
+        &vol,
+        &p,
+        &opts(ZarrFormat::V3, Compression::Zstd(3)),
+        &|_, _| {},
+    )
+    .unwrap();
+    // v3 keys: c/z/y/x.
+    let chunk = p.join("0/c/1/2/2");
+    assert!(chunk.is_file());
+    std::fs::remove_file(&chunk).unwrap();
+    let s = ZarrStore::open(&p).unwrap();
+    assert_eq!(s.chunk_range(0, [2, 2, 1]), ChunkRange::Fill(0.0));
+    let c = s.read_chunk(0, [2, 2, 1]).unwrap();
+    assert!((0..c.len()).all(|i| c.get(i) == 0.0));
+    std::fs::write(p.join("0/c/0/2/2"), b"not zstd at all").unwrap();
+    let e = s.read_chunk(0, [2, 2, 0]).unwrap_err().to_string();
+    assert!(e.contains("m.zarr") && e.contains("c/0/2/2"), "{e}");
+    let e = s.read_level(0).unwrap_err().to_string();
+    assert!(e.contains("level 0"), "{e}");
+}
+
+#[test]
+fn bad_metadata_is_a_clear_error() {
+    let vol = sample([16, 16, 8]);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("b.zarr");
+    write_volume(
+        &vol,
+        &p,
+        &opts(ZarrFormat::V2, Compression::None),
+        &|_, _| {},
+    )
+    .unwrap();
+    let attrs = p.join(".zattrs");
+    let good = std::fs::read_to_string(&attrs).unwrap();
+    let cases = [
+        (
+            good.replace("\"path\": \"1\"", "\"path\": \"../1\""),
+            "inside the store",
+        ),
+        (good.replace("\"path\": \"1\"", "\"path\": \"9\""), "9"),
+        (
+            good.replace("\"multiscales\"", "\"other\""),
+            "no OME-Zarr multiscales",
+        ),
+        (good.replace("\"name\": \"x\"", "\"name\": \"q\""), "axes"),
+        (
+            good.replacen("\"scale\": [", "\"scale\": [-1, ", 1)
+                .replacen("-1, 1.25", "-1", 1),
+            "scale",
+        ),
+        ("{".to_string(), "JSON"),
+    ];
+    for (text, want) in cases {
+        std::fs::write(&attrs, &text).unwrap();
+        let e = ZarrStore::open(&p).unwrap_err().to_string();
+        assert!(e.contains("b.zarr") && e.contains(want), "{want}: {e}");
+    }
+    // Levels out of order: the coarser one first.
+    std::fs::write(
+        &attrs,
+        good.replace("\"path\": \"0\"", "\"path\": \"TMP\"")
+            .replace("\"path\": \"1\"", "\"path\": \"0\"")
+            .replace("\"path\": \"TMP\"", "\"path\": \"1\""),
+    )
+    .unwrap();
+    let e = ZarrStore::open(&p).unwrap_err().to_string();
+    assert!(e.contains("finest to coarsest"), "{e}");
+    std::fs::write(&attrs, &good).unwrap();
+    assert!(ZarrStore::open(&p).is_ok());
+    // A stale sidecar is ignored, not trusted.
+    std::fs::write(p.join("0").join(RANGES_FILE), b"VXCRNG01short").unwrap();
+    let s = ZarrStore::open(&p).unwrap();
+    assert!(!s.info().levels[0].has_ranges && s.info().levels[1].has_ranges);
+    assert_eq!(s.chunk_range(0, [1, 1, 1]), ChunkRange::Unknown);
+}
+
+#[test]
+fn a_level_is_read_by_number_and_a_missing_one_is_named() {
+    let vol = sample([16, 16, 8]);
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("l.zarr");
+    write_volume(
+        &vol,
+        &p,
+        &opts(ZarrFormat::V3, Compression::None),
+        &|_, _| {},
+    )
+    .unwrap();
+    let o = OpenOptions {
+        level: Some(1),
+        ..Default::default()
+    };
+    assert_eq!(read(&p, &o).unwrap().dims(), [8, 8, 4]);
+    let o = OpenOptions {
+        level: Some(7),
+        ..Default::default()
+    };
+    let e = read(&p, &o).unwrap_err().to_string();
+    assert!(e.contains("levels 0…1"), "{e}");
+}
+
+#[test]
+fn the_out_of_core_render_of_a_store_is_the_in_core_picture() {
+    use crate::camera::CameraParams;
+    use crate::render::outofcore::{render_chunked, OutOfCoreParams};
+    use crate::render::RenderParams;
+    use crate::transfer::TransferFunction;
+    let vol = crate::builtin::open("demo").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("demo.zarr");
+    let o = WriteOptions {
+        chunk: [32, 32, 32],
+        ..Default::default()
+    };
+    write_volume(&vol, &p, &o, &|_, _| {}).unwrap();
+    let store = ZarrStore::open(&p).unwrap();
+    let mem = MemorySource::new(vol.clone(), 0, [32, 32, 32]).unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let window = tf.window_for(&vol, None);
+    let cam = CameraParams {
+        azimuth: 30.0,
+        elevation: 20.0,
+        ..Default::default()
+    };
+    let rp = RenderParams {
+        width: 64,
+        height: 64,
+        ..Default::default()
+    };
+    let ooc = OutOfCoreParams {
+        budget: 1 << 20,
+        level: Some(0),
+        ..Default::default()
+    };
+    let run = |src: &dyn ChunkedSource| {
+        render_chunked(
+            src,
+            &tf,
+            window,
+            &cam,
+            &rp,
+            &ooc,
+            &|_, _| {},
+            &std::sync::atomic::AtomicBool::new(false),
+        )
+        .unwrap()
+    };
+    let (a, _, sa) = run(&store);
+    let (b, _, sb) = run(&mem);
+    assert_eq!(a.pixels, b.pixels);
+    // The store's ranges skip the empty chunks without reading them.
+    assert!(sa.empty > 0 && sa.bytes_read > 0, "{sa:?}");
+    assert!(sa.cache.misses < sb.cache.misses, "{sa:?} {sb:?}");
+}
