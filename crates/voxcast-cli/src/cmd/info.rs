@@ -4,11 +4,32 @@ use crate::args::InfoArgs;
 use anyhow::Result;
 use std::path::Path;
 use voxcast::scene::Scene;
+use voxcast::volume::ChunkedSource;
 
 pub fn run(a: InfoArgs) -> Result<()> {
     let mut scene = Scene::default();
     scene.input.path = a.input.clone();
     scene.input.options = a.open.options()?;
+    // A chunked store: its levels; the statistics of the finest level of
+    // at most 512 MiB unless --level says which.
+    let zarr = if voxcast::io::detect(Path::new(&a.input), &scene.input.options).ok()
+        == Some(voxcast::io::Format::Zarr)
+    {
+        let store =
+            voxcast::io::zarr::ZarrStore::open_with(Path::new(&a.input), &scene.input.options)?;
+        let n = store.levels().len();
+        let level = scene
+            .input
+            .options
+            .level
+            .unwrap_or_else(|| store.finest_within(512 << 20).unwrap_or(n - 1));
+        scene.input.options.level = Some(level);
+        let mut lines = store.summary();
+        lines.push(format!("statistics below: level {level}"));
+        Some(lines)
+    } else {
+        None
+    };
     let vol = scene.load_volume()?;
     // An FDS case: its meshes, quantities, times and obstructions.
     let fds = if a.input.to_ascii_lowercase().ends_with(".smv") {
@@ -66,6 +87,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
             "fds": fds,
             "wrf": wrf,
             "dicom": dicom,
+            "zarr": zarr,
             "header": header.as_ref().map(|(_, lines)| lines),
             "time": vol.time,
         });
@@ -129,6 +151,12 @@ pub fn run(a: InfoArgs) -> Result<()> {
     }
     if let Some((title, lines)) = &header {
         println!("  {title}");
+        for l in lines {
+            println!("    {l}");
+        }
+    }
+    if let Some(lines) = &zarr {
+        println!("  Zarr store");
         for l in lines {
             println!("    {l}");
         }

@@ -16,6 +16,13 @@ use voxcast::render::outofcore::{self, human_bytes, OutOfCoreParams};
 use voxcast::scene::Scene;
 use voxcast::volume::ChunkedSource;
 
+/// Bytes an in-core render holds per byte of the level it reads (measured:
+/// a 256 MiB level peaks at 527 MiB resident).
+const IN_CORE_FACTOR: u64 = 2;
+
+/// The largest level read whole to build the transfer function from.
+const PROXY_BYTES: u64 = 64 << 20;
+
 /// What to do with a chunked input.
 pub enum Plan {
     /// Read this level whole and render as usual.
@@ -52,11 +59,13 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
         None => outofcore::choose_level(levels, &cam, 1.0),
     };
     let bytes = levels[level].bytes(store.scalar_type());
-    if !a.out_of_core && bytes <= budget {
+    // In core the renderer keeps a second copy of the voxels laid out for
+    // its ray packets: twice the level must fit.
+    if !a.out_of_core && bytes.saturating_mul(IN_CORE_FACTOR) <= budget {
         if !a.quiet && levels.len() > 1 {
             let d = levels[level].dims;
             eprintln!(
-                "{}: level {level} of 0…{} ({}×{}×{}, {}) {}; it fits the memory budget ({}): reading it whole",
+                "{}: level {level} of 0…{} ({}×{}×{}, {}) {}; twice it fits the memory budget ({}): reading it whole",
                 path.display(),
                 levels.len() - 1,
                 d[0],
@@ -99,14 +108,31 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
     outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
     outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
     let quiet = a.quiet;
-    // The coarsest level stands in for the volume where the transfer
-    // function and the window need its values (auto, histograms).
+    // The finest level of at most 64 MiB stands in for the volume where
+    // the transfer function and the window need its values (auto,
+    // histograms): level 0 itself for a volume of that size, so the picture
+    // is the in-core one. It is freed before the render starts, so the
+    // budget holds during the render.
     let t_load = Instant::now();
     let levels = store.levels();
-    let coarsest = levels.len() - 1;
+    let coarsest = store.finest_within(PROXY_BYTES).unwrap_or(levels.len() - 1);
     let proxy = store.read_level(coarsest)?;
-    let prepared = scene.prepare_with(proxy)?;
+    let mut prepared = scene.prepare_with(proxy)?;
+    // The window over the data range: level 0's, where the store keeps its
+    // chunks' ranges (the proxy's means are narrower).
+    if scene.transfer.window.is_none() && prepared.tf.window.is_none() {
+        if let Some(r) = store.value_range() {
+            prepared.window = r;
+        }
+    }
     outputs.check()?;
+    // Only the transfer function and the window are kept.
+    prepared.volume = voxcast::Volume::new(
+        [1, 1, 1],
+        glam::Vec3::ONE,
+        glam::Vec3::ZERO,
+        voxcast::VoxelData::U8(vec![0u8].into()),
+    )?;
     if prepared.geometry.is_some() {
         bail!("--geometry: opaque geometry is not rendered out of core; render without it, or give a --memory-budget the level fits in");
     }

@@ -648,7 +648,21 @@ impl ZarrStore {
         })?;
         crate::volume::checked_voxel_count(l.dims)
             .map_err(|m| Error::format(&self.path, format!("level {level}"), m))?;
-        let data = self.read_box(level, [0; 3], l.dims)?;
+        let data = match self.read_box(level, [0; 3], l.dims) {
+            Ok(d) => d,
+            // Find the chunk at fault, so the error names its file.
+            Err(e) => {
+                let n = l.chunk_counts();
+                for z in 0..n[2] {
+                    for y in 0..n[1] {
+                        for x in 0..n[0] {
+                            self.read_chunk(level, [x, y, z])?;
+                        }
+                    }
+                }
+                return Err(e);
+            }
+        };
         let mut v = Volume::new(l.dims.map(|d| d as usize), l.spacing, l.origin, data)?;
         v.name = Some(self.path.display().to_string());
         v.units = None;
@@ -659,6 +673,29 @@ impl ZarrStore {
     pub fn finest_within(&self, bytes: u64) -> Option<usize> {
         let ty = self.scalar_type();
         (0..self.levels.len()).find(|&l| self.levels[l].bytes(ty) <= bytes)
+    }
+
+    /// A chunk not stored that the sidecar says held values was lost: says
+    /// so once (Zarr's rule reads it as the fill value).
+    fn warn_if_lost(&self, level: usize, c: [u64; 3]) {
+        let Some(r) = &self.ranges[level] else {
+            return;
+        };
+        let i = c[0] + r.counts[0] * (c[1] + r.counts[1] * c[2]);
+        let fill = self.info.fill as f32;
+        let had_values = r
+            .minmax
+            .get(i as usize)
+            .is_some_and(|m| !(m[0] == fill && m[1] == fill));
+        if had_values && !self.warned_missing.swap(true, Ordering::Relaxed) {
+            eprintln!(
+                "warning: {}: level {level} ({}) chunk {:?} (x, y, z) is missing from the store though it held values when written; missing chunks render as the fill value {} (further ones are not reported)",
+                self.path.display(),
+                self.array_label(level),
+                c,
+                self.info.fill
+            );
+        }
     }
 
     /// Whether chunk `c` of `level` (in the ChunkedSource's grid) is stored.
@@ -693,6 +730,7 @@ impl ChunkedSource for ZarrStore {
     }
     fn chunk_range(&self, level: usize, c: [u64; 3]) -> ChunkRange {
         if self.chunk_stored(level, c) == Some(false) {
+            self.warn_if_lost(level, c);
             return ChunkRange::Fill(self.info.fill as f32);
         }
         match &self.ranges[level] {
@@ -718,27 +756,6 @@ impl ChunkedSource for ZarrStore {
                 self.path.display(),
                 c
             )));
-        }
-        // A chunk the sidecar says holds values but that is not stored was
-        // lost: say so once (Zarr's rule reads it as the fill value).
-        if let Some(r) = &self.ranges[level] {
-            let i = c[0] + r.counts[0] * (c[1] + r.counts[1] * c[2]);
-            let had_values = r
-                .minmax
-                .get(i as usize)
-                .is_some_and(|m| !(m[0] == self.info.fill as f32 && m[1] == m[0]));
-            if had_values
-                && self.chunk_stored(level, c) == Some(false)
-                && !self.warned_missing.swap(true, Ordering::Relaxed)
-            {
-                eprintln!(
-                    "warning: {}: level {level} ({}) chunk {:?} (x, y, z) is missing from the store though it held values when written; missing chunks render as the fill value {} (further ones are not reported)",
-                    self.path.display(),
-                    self.array_label(level),
-                    c,
-                    self.info.fill
-                );
-            }
         }
         let (lo, hi) = l.chunk_box(c);
         self.read_box(level, lo, hi).map_err(|e| match e {
@@ -1060,3 +1077,87 @@ pub(crate) fn ranges_bytes(counts: [u64; 3], minmax: &[[f32; 2]]) -> Vec<u8> {
 
 #[cfg(test)]
 mod tests;
+
+impl ZarrStore {
+    /// Lines for `voxcast info`: the format, axes, type, and each level's
+    /// path, dims, voxel size, chunks, codecs and decoded size.
+    pub fn summary(&self) -> Vec<String> {
+        let i = &self.info;
+        let mut out = vec![format!(
+            "Zarr v{}{}, {} levels, {} (fill {})",
+            i.zarr_format,
+            i.ome_version
+                .as_ref()
+                .map(|v| format!(", OME-Zarr {v}"))
+                .unwrap_or_else(|| ", no OME-Zarr metadata".into()),
+            self.levels.len(),
+            i.stored.name(),
+            i.fill
+        )];
+        let axes: Vec<String> = i
+            .axes
+            .iter()
+            .map(|(n, k, u)| {
+                let mut s = format!("{n} ({k}");
+                if let Some(u) = u {
+                    s += &format!(", {u}");
+                }
+                s + ")"
+            })
+            .collect();
+        out.push(format!("axes {}", axes.join(", ")));
+        if !i.lead_index.is_empty() {
+            let lead: Vec<String> = i
+                .axes
+                .iter()
+                .zip(&i.lead_index)
+                .map(|((n, _, _), k)| format!("{n} = {k}"))
+                .collect();
+            out.push(format!(
+                "reading {} (--time picks t, --var the channel{})",
+                lead.join(", "),
+                if i.channels.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {}", i.channels.join(", "))
+                }
+            ));
+        }
+        let ty = self.scalar_type();
+        for (l, (lv, li)) in self.levels.iter().zip(&i.levels).enumerate() {
+            // Sharded: the chunks above are the shards' inner chunks.
+            let shard = match li.subchunk_shape {
+                Some(_) => format!(
+                    " in shard files of {} (array order)",
+                    li.chunk_shape
+                        .iter()
+                        .map(|c| c.to_string())
+                        .collect::<Vec<_>>()
+                        .join("×")
+                ),
+                None => String::new(),
+            };
+            out.push(format!(
+                "level {l} [{}]: {}×{}×{}, voxel {} × {} × {}, chunks {}×{}×{}{shard}, {}, {} decoded{}",
+                if li.path.is_empty() { "/" } else { &li.path },
+                lv.dims[0],
+                lv.dims[1],
+                lv.dims[2],
+                lv.spacing.x,
+                lv.spacing.y,
+                lv.spacing.z,
+                lv.chunk[0],
+                lv.chunk[1],
+                lv.chunk[2],
+                if li.codecs.is_empty() {
+                    "uncompressed".to_string()
+                } else {
+                    li.codecs.join(" + ")
+                },
+                crate::render::outofcore::human_bytes(lv.bytes(ty)),
+                if li.has_ranges { ", chunk ranges" } else { "" }
+            ));
+        }
+        out
+    }
+}

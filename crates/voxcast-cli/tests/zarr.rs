@@ -1,0 +1,258 @@
+//! `voxcast convert` and chunked stores from the command line: a pyramid
+//! written and rendered in core and out of core to the same picture, the
+//! level chosen by zoom, and every refusal with its reason.
+
+mod common;
+use common::{stderr, voxcast};
+use std::path::Path;
+
+fn ok(args: &[&str], cwd: &Path) -> String {
+    let o = voxcast(args, cwd);
+    assert!(o.status.success(), "voxcast {args:?}: {}", stderr(&o));
+    stderr(&o)
+}
+
+fn fails(args: &[&str], cwd: &Path) -> String {
+    let o = voxcast(args, cwd);
+    assert!(!o.status.success(), "voxcast {args:?} should fail");
+    let e = stderr(&o);
+    assert!(!e.contains("panicked"), "{e}");
+    e
+}
+
+fn psnr(a: &str, b: &str, cwd: &Path) -> Option<f64> {
+    let o = voxcast(&["compare", a, b, "--json"], cwd);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    j["psnr_db"].as_f64()
+}
+
+#[test]
+fn a_converted_store_renders_out_of_core_as_in_core() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let said = ok(
+        &[
+            "convert",
+            "builtin:demo",
+            "-o",
+            "demo.zarr",
+            "--chunk",
+            "32",
+        ],
+        d,
+    );
+    assert!(said.contains("3 levels"), "{said}");
+    assert!(d.join("demo.zarr/zarr.json").is_file());
+    // No temporary folder is left beside it.
+    let names: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, vec!["demo.zarr".to_string()]);
+    let common = ["--size", "96x96", "--azimuth", "30", "--elevation", "20"];
+    let mut a = vec!["render", "builtin:demo", "-o", "a.png"];
+    a.extend(common);
+    ok(&a, d);
+    let mut b = vec!["render", "demo.zarr", "-o", "b.png", "--level", "0"];
+    b.extend(common);
+    ok(&b, d);
+    // Out of core under a budget of a few chunks: the same voxels, window
+    // and samples.
+    let mut c = vec![
+        "render",
+        "demo.zarr",
+        "-o",
+        "c.png",
+        "--level",
+        "0",
+        "--out-of-core",
+        "--memory-budget",
+        "1MiB",
+        "--stats-json",
+        "c.json",
+    ];
+    c.extend(common);
+    let said = ok(&c, d);
+    assert!(said.contains("out of core"), "{said}");
+    assert_eq!(psnr("a.png", "b.png", d), None, "in core: identical");
+    let db = psnr("a.png", "c.png", d).map_or(f64::INFINITY, |v| v);
+    assert!(db >= 60.0, "out of core {db} dB");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("c.json")).unwrap()).unwrap();
+    assert!(j["out_of_core"]["bytes_read"].as_u64().unwrap() > 0, "{j}");
+    assert!(
+        j["out_of_core"]["cache"]["peak_bytes"].as_u64().unwrap() <= 1 << 20,
+        "{j}"
+    );
+    // A 96² view of 128³ needs level 1; zoomed in, level 0.
+    let said = ok(
+        &["render", "demo.zarr", "-o", "d.png", "--size", "96x96"],
+        d,
+    );
+    assert!(said.contains("level 1 of 0…2"), "{said}");
+    let said = ok(
+        &[
+            "render",
+            "demo.zarr",
+            "-o",
+            "e.png",
+            "--size",
+            "96x96",
+            "--zoom",
+            "3",
+        ],
+        d,
+    );
+    assert!(said.contains("level 0 of 0…2"), "{said}");
+    // info lists the levels.
+    let o = voxcast(&["info", "demo.zarr"], d);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("OME-Zarr 0.5") && text.contains("level 2 [2]: 32×32×32"),
+        "{text}"
+    );
+}
+
+#[test]
+fn convert_refuses_to_lose_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(&["convert", "builtin:sphere", "-o", "s.zarr", "-q"], d);
+    // An existing store needs --overwrite; a folder that is not a store is
+    // never replaced.
+    let e = fails(&["convert", "builtin:sphere", "-o", "s.zarr"], d);
+    assert!(e.contains("--overwrite"), "{e}");
+    std::fs::create_dir(d.join("photos")).unwrap();
+    std::fs::write(d.join("photos/keep.txt"), "mine").unwrap();
+    let e = fails(
+        &["convert", "builtin:sphere", "-o", "photos", "--overwrite"],
+        d,
+    );
+    assert!(e.contains("not a Zarr store"), "{e}");
+    assert!(d.join("photos/keep.txt").is_file());
+    // A store is not written over itself, nor over the folder holding it.
+    let e = fails(&["convert", "s.zarr", "-o", "s.zarr", "--overwrite"], d);
+    assert!(e.contains("input"), "{e}");
+    // With --overwrite the new store replaces the old one whole.
+    ok(
+        &[
+            "convert",
+            "builtin:demo",
+            "-o",
+            "s.zarr",
+            "--overwrite",
+            "-q",
+        ],
+        d,
+    );
+    let o = voxcast(&["info", "s.zarr", "--json"], d);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["dims"], serde_json::json!([128, 128, 128]));
+    // Bad flags, each named.
+    for (args, want) in [
+        (vec!["--chunk", "0"], "--chunk"),
+        (vec!["--zarr-version", "4"], "--zarr-version"),
+        (vec!["--compression", "lzma"], "--compression"),
+        (vec!["--levels", "0"], "--levels"),
+        (vec!["--dims", "8,8"], "--dims"),
+    ] {
+        let mut a = vec!["convert", "builtin:sphere", "-o", "x.zarr"];
+        a.extend(args);
+        let e = fails(&a, d);
+        assert!(e.contains(want), "{want}: {e}");
+        assert!(!d.join("x.zarr").exists());
+    }
+    let e = fails(
+        &[
+            "convert",
+            "builtin:plume",
+            "--dims",
+            "8,8,8",
+            "-o",
+            "x.zarr",
+        ],
+        d,
+    );
+    assert!(e.contains("not generated at other sizes"), "{e}");
+    // A failed read leaves nothing behind.
+    let e = fails(&["convert", "missing.nrrd", "-o", "x.zarr"], d);
+    assert!(e.contains("missing.nrrd"), "{e}");
+    let left: Vec<_> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("x.zarr"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn a_damaged_store_is_a_clear_error_or_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ok(
+        &[
+            "convert",
+            "builtin:demo",
+            "-o",
+            "s.zarr",
+            "--chunk",
+            "32",
+            "--levels",
+            "1",
+            "-q",
+        ],
+        d,
+    );
+    let args = [
+        "render",
+        "s.zarr",
+        "-o",
+        "o.png",
+        "--size",
+        "64x64",
+        "--out-of-core",
+        "--memory-budget",
+        "1MiB",
+    ];
+    // A budget below one brick is refused with what it needs.
+    let e = fails(
+        &[
+            "render",
+            "s.zarr",
+            "-o",
+            "o.png",
+            "--out-of-core",
+            "--memory-budget",
+            "10KiB",
+        ],
+        d,
+    );
+    assert!(e.contains("below one brick"), "{e}");
+    let e = fails(
+        &["render", "s.zarr", "-o", "o.png", "--memory-budget", "lots"],
+        d,
+    );
+    assert!(e.contains("--memory-budget"), "{e}");
+    // A chunk that held values is missing: rendered as the fill value,
+    // with one warning.
+    std::fs::remove_file(d.join("s.zarr/0/c/1/1/1")).unwrap();
+    std::fs::remove_file(d.join("s.zarr/0/c/2/1/1")).unwrap();
+    let said = ok(&args, d);
+    assert_eq!(
+        said.matches("is missing from the store").count(),
+        1,
+        "{said}"
+    );
+    // Corrupt bytes: an error naming the chunk; the image of the run
+    // before is left as it was.
+    let before = std::fs::read(d.join("o.png")).unwrap();
+    std::fs::write(d.join("s.zarr/0/c/1/2/1"), b"garbage").unwrap();
+    let e = fails(&args, d);
+    assert!(e.contains("c/1/2/1") && e.contains("s.zarr"), "{e}");
+    assert_eq!(std::fs::read(d.join("o.png")).unwrap(), before);
+    // Metadata that is not JSON names the file.
+    std::fs::write(d.join("s.zarr/zarr.json"), b"{").unwrap();
+    let e = fails(&["info", "s.zarr"], d);
+    assert!(e.contains("zarr.json") && e.contains("JSON"), "{e}");
+}
