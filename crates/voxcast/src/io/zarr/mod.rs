@@ -14,8 +14,8 @@
 //! at one index: `--time T` picks the index on `t`, `--var C` the
 //! channel (an index, or a label from `omero.channels`); index 0 otherwise.
 //!
-//! Types: u8, u16, i16 and f32 are read as they are; i8, u32, i32, u64,
-//! i64 and f64 as f32 (the only wider type a volume holds).
+//! Types: u8, u16, i16 and f32 are read as they are; i8 as i16; u32,
+//! i32, u64, i64 and f64 as f32 (the only wider type a volume holds).
 //!
 //! Stores that `voxcast convert` writes ([`write`]) keep each level's
 //! per-chunk value range in a sidecar (`voxcast-chunk-ranges.bin`, beside
@@ -92,7 +92,7 @@ impl StoredType {
         match self {
             StoredType::U8 => ScalarType::U8,
             StoredType::U16 => ScalarType::U16,
-            StoredType::I16 => ScalarType::I16,
+            StoredType::I16 | StoredType::I8 => ScalarType::I16,
             _ => ScalarType::F32,
         }
     }
@@ -619,7 +619,13 @@ impl ZarrStore {
             StoredType::U16 => VoxelData::U16(get!(u16).into()),
             StoredType::I16 => VoxelData::I16(get!(i16).into()),
             StoredType::F32 => VoxelData::F32(get!(f32).into()),
-            StoredType::I8 => wide!(i8),
+            StoredType::I8 => VoxelData::I16(
+                get!(i8)
+                    .into_iter()
+                    .map(i16::from)
+                    .collect::<Vec<_>>()
+                    .into(),
+            ),
             StoredType::U32 => wide!(u32),
             StoredType::I32 => wide!(i32),
             StoredType::U64 => wide!(u64),
