@@ -212,6 +212,73 @@ fn series_frame_and_time_are_saved_and_reproduced() {
     assert_matches_render(dir.path(), "series view vs render");
 }
 
+/// An OME-Zarr store opens at once at its coarsest level and refines, level
+/// by level as they are read, down to level 0 (the images painted say which
+/// level each showed); the scripted run waits for level 0, and the saved
+/// scene renders the same picture.
+#[test]
+fn a_store_opens_at_the_coarsest_level_and_refines_to_level_0() {
+    if !have_xvfb() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("demo.zarr");
+    let store = store.to_str().unwrap();
+    let o = voxcast(
+        &["convert", "builtin:demo", "-o", store, "--chunk", "32"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let args = [
+        store,
+        "--size",
+        "240x180",
+        "--azimuth",
+        "30",
+        "--screenshot",
+        "out.png",
+        "--exit-after-frames",
+        "5",
+        "--save-scene",
+        "s.toml",
+        "--stats-json",
+        "st.json",
+    ];
+    let o = view(&args, dir.path());
+    assert_ran(&o);
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
+            .unwrap();
+    let levels: Vec<u64> = stats["levels"]
+        .as_array()
+        .expect("levels")
+        .iter()
+        .map(|l| l.as_u64().unwrap())
+        .collect();
+    // Levels 128³, 64³, 32³: the first image is of level 2, the last of 0,
+    // finer and finer in between.
+    assert_eq!(levels.first(), Some(&2), "{stats}");
+    assert_eq!(levels.last(), Some(&0), "{stats}");
+    assert!(levels.windows(2).all(|w| w[0] > w[1]), "{levels:?}");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("levels shown: 2"), "{e}");
+    let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
+    assert_eq!(scene.input.options.level, None, "level 0: no --level");
+    assert_matches_render(dir.path(), "store view vs render");
+    // --level N: that level only, no refinement.
+    let mut one = args.to_vec();
+    one.extend_from_slice(&["--level", "1"]);
+    let o = view(&one, dir.path());
+    assert_ran(&o);
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
+            .unwrap();
+    assert_eq!(stats["levels"], serde_json::json!([]), "{stats}");
+    let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
+    assert_eq!(scene.input.options.level, Some(1));
+    assert_matches_render(dir.path(), "store level 1 view vs render");
+}
+
 #[test]
 fn view_without_a_display_or_with_bad_flags_fails_cleanly() {
     let dir = tempfile::tempdir().unwrap();

@@ -4,10 +4,12 @@
 //! turns input into requests and shows what comes back. Here: the app's
 //! state, the worker's replies and the render schedule; `panels` draws the
 //! view, the stats bar and the control panel; `script` runs `--orbit`,
-//! `--screenshot` and `--script-stats`.
+//! `--screenshot` and `--script-stats`. A store shown coarse first swaps in
+//! each finer level as the loader hands it over ([`crate::levels`]).
 
 use crate::camera_ctl::OrbitController;
 use crate::image_paint::{self, PaintImage};
+use crate::levels::{LevelSlots, Loaded, Pyramid};
 use crate::progressive::{frame_params, Quality, Scheduler};
 use crate::tf_model::{LogHistogram, TfModel};
 use crate::tf_widget::TfWidgetState;
@@ -16,6 +18,7 @@ use crate::{ScriptStats, ViewOptions};
 use eframe::egui::{self, Color32, ColorImage, TextureHandle};
 use std::collections::VecDeque;
 use std::path::PathBuf;
+use std::sync::mpsc::{Receiver, TryRecvError};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 use voxcast::io::Series;
@@ -43,6 +46,8 @@ pub struct Setup {
     pub volume: Arc<Volume>,
     pub geometry: Option<Arc<voxcast::geometry::Geometry>>,
     pub series: Option<(Series, usize)>,
+    /// A store shown coarse first (`volume` is its coarsest level).
+    pub pyramid: Option<Pyramid>,
     pub options: ViewOptions,
     /// Where the scripted run reports its result.
     pub outcome: Arc<Mutex<Option<Result<ScriptStats, String>>>>,
@@ -56,6 +61,30 @@ struct TimeState {
     playing: bool,
     fps: f32,
     last_step: Instant,
+}
+
+/// A store shown coarse first, refined level by level.
+struct LevelState {
+    coarsest: usize,
+    /// The finest level to be read.
+    finest: usize,
+    /// The level in use: requests name it as their frame.
+    level: usize,
+    /// The store, until the loader starts (once the first image is on
+    /// screen, so that the first image does not wait for a read).
+    pyramid: Option<Pyramid>,
+    slots: Arc<LevelSlots>,
+    loaded: Option<Receiver<Loaded>>,
+    /// Why no finer level comes.
+    failed: Option<String>,
+    ctx: egui::Context,
+}
+
+impl LevelState {
+    /// True while a finer level is still to come.
+    fn refining(&self) -> bool {
+        self.level > self.finest && self.failed.is_none()
+    }
 }
 
 /// How the image on screen is drawn.
@@ -116,6 +145,7 @@ pub struct ViewerApp {
     /// Full-quality parameters (the view's size).
     params: RenderParams,
     time: Option<TimeState>,
+    levels: Option<LevelState>,
     worker: Worker,
     scheduler: Scheduler,
     /// The view state's version: bumped by every change.
@@ -164,6 +194,7 @@ impl ViewerApp {
             volume,
             geometry,
             series,
+            pyramid,
             options,
             outcome,
         } = setup;
@@ -172,12 +203,23 @@ impl ViewerApp {
             (lo, hi) = (lo.min(glo), hi.max(ghi));
         }
         let cam = OrbitController::new(&scene.camera, (lo, hi));
-        let (source, frame) = match &series {
-            Some((s, f)) => (
+        let levels = pyramid.map(|p| LevelState {
+            coarsest: p.coarsest,
+            finest: p.finest,
+            level: p.coarsest,
+            pyramid: Some(p),
+            slots: Arc::default(),
+            loaded: None,
+            failed: None,
+            ctx: ctx.clone(),
+        });
+        let (source, frame) = match (&series, &levels) {
+            (Some((s, f)), _) => (
                 Source::Series(Box::new(s.clone()), scene.input.options.clone()),
                 *f,
             ),
-            None => (Source::Single, 0),
+            (None, Some(l)) => (Source::Levels(l.slots.clone()), l.level),
+            (None, None) => (Source::Single, 0),
         };
         let worker = Worker::spawn(
             options.device.clone(),
@@ -224,6 +266,7 @@ impl ViewerApp {
             volume,
             cam,
             time,
+            levels,
             worker,
             scheduler: Scheduler::default(),
             version: 1,
@@ -255,8 +298,13 @@ impl ViewerApp {
         self.last_change = Instant::now();
     }
 
+    /// The frame of the series, or the level of the store, in use.
     fn frame_index(&self) -> usize {
-        self.time.as_ref().map_or(0, |t| t.frame)
+        match (&self.time, &self.levels) {
+            (Some(t), _) => t.frame,
+            (None, Some(l)) => l.level,
+            (None, None) => 0,
+        }
     }
 
     /// The scene that reproduces what is on screen.
@@ -271,6 +319,11 @@ impl ViewerApp {
                 }
                 _ => s.input.options.time = Some(t.times[i]),
             }
+        }
+        if let Some(l) = &self.levels {
+            // Level 0 is what `voxcast render` reads (or renders out of
+            // core) by itself.
+            s.input.options.level = (l.level > 0).then_some(l.level);
         }
         s.transfer.tf = "auto".into();
         s.transfer.map = Some(self.tf.tf().clone());
@@ -377,6 +430,61 @@ impl ViewerApp {
         }
     }
 
+    /// Starts reading the finer levels of a store, once the first image is
+    /// on screen (so that it does not wait for a read).
+    fn start_loader(&mut self) {
+        let Some(l) = &mut self.levels else { return };
+        if let Some(p) = l.pyramid.take() {
+            if l.refining() {
+                let c = l.ctx.clone();
+                l.loaded = Some(p.load_finer(l.slots.clone(), move || c.request_repaint()));
+            }
+        }
+    }
+
+    /// Swaps in the finest level of the store read so far: same camera,
+    /// transfer function and window; its full-quality frame follows.
+    fn poll_levels(&mut self, ctx: &egui::Context) {
+        let Some(l) = &mut self.levels else { return };
+        let Some(rx) = &l.loaded else { return };
+        let mut newest = None;
+        let mut failed = None;
+        loop {
+            match rx.try_recv() {
+                Ok(Ok((level, volume))) => {
+                    l.level = level;
+                    newest = Some(volume);
+                }
+                Ok(Err(message)) => failed = Some(message),
+                Err(TryRecvError::Empty) => break,
+                Err(TryRecvError::Disconnected) => {
+                    if l.refining() && failed.is_none() {
+                        failed = Some("the level loader stopped".into());
+                    }
+                    l.loaded = None;
+                    break;
+                }
+            }
+        }
+        if let Some(volume) = newest {
+            let stats = volume.stats();
+            self.data_range = [stats.min, stats.max];
+            self.volume = volume;
+            // Not a move: the image on screen stays until the new level's
+            // full-quality frame replaces it.
+            self.version += 1;
+        }
+        if let Some(message) = failed {
+            self.message = format!("reading a finer level failed: {message}");
+            if let Some(l) = &mut self.levels {
+                l.failed = Some(message);
+            }
+            if self.script.is_some() {
+                self.finish(ctx, Err(self.message.clone()));
+            }
+        }
+    }
+
     /// Sends the request the current state needs, if any.
     fn schedule(&mut self, ctx: &egui::Context) {
         if self.params.width == 0 || self.params.height == 0 {
@@ -444,13 +552,23 @@ impl ViewerApp {
     /// screen, not images that arrived (two arriving between UI frames show
     /// only the second).
     fn on_new_image(&mut self, quality: Quality, generation: u64) {
+        self.start_loader();
         let now = Instant::now();
         self.shown_times.push_back(now);
         while self.shown_times.len() > 120 {
             self.shown_times.pop_front();
         }
         let version = self.version;
+        let shown_level = match (&self.levels, &self.shown) {
+            (Some(_), Some(sh)) => Some(sh.frame),
+            _ => None,
+        };
         let Some(s) = &mut self.script else { return };
+        if let Some(l) = shown_level {
+            if s.stats.levels.last() != Some(&l) {
+                s.stats.levels.push(l);
+            }
+        }
         if s.orbit_start.is_some() && s.orbit_end.is_none() {
             s.stats.frames_while_moving += 1;
         }
@@ -474,6 +592,7 @@ impl eframe::App for ViewerApp {
         let ctx = ui.ctx().clone();
         self.ui_frame += 1;
         self.poll_replies(&ctx);
+        self.poll_levels(&ctx);
         self.take_screenshot(&ctx);
         self.advance_playback();
         self.run_script(&ctx);

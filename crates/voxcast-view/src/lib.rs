@@ -9,12 +9,14 @@
 //! progressively ([`progressive`]). The parts with logic of their own —
 //! the transfer-function model ([`tf_model`]), the camera controller
 //! ([`camera_ctl`]), the scheduler, the screenshot crop — need no window and
-//! are tested without one.
+//! are tested without one. A multi-resolution store opens at its coarsest
+//! level and refines as finer levels are read ([`levels`]).
 
 mod app;
 pub mod backend;
 pub mod camera_ctl;
 mod image_paint;
+pub mod levels;
 pub mod progressive;
 pub mod screenshot;
 pub mod tf_model;
@@ -23,6 +25,7 @@ pub mod worker;
 
 pub use voxcast_gpu::Device;
 
+use levels::Pyramid;
 use serde::Serialize;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
@@ -88,6 +91,10 @@ pub struct ScriptStats {
     pub full_cancelled: u64,
     /// The window's present mode.
     pub present_mode: String,
+    /// A store shown coarse first: the level of each new image painted,
+    /// repeats left out (the coarsest first, the finest read last); empty
+    /// for other inputs.
+    pub levels: Vec<usize>,
 }
 
 impl ScriptStats {
@@ -114,7 +121,7 @@ impl ScriptStats {
 /// shows it in a window until the window is closed (or, scripted, until the
 /// screenshot is written). Returns what a scripted run measured.
 pub fn run(scene: Scene, options: ViewOptions) -> Result<ScriptStats, ViewError> {
-    let (series, volume) = open_input(&scene)?;
+    let (series, pyramid, volume) = open_input(&scene)?;
     let prepared = scene.prepare_with(volume)?;
     let (w, h) = (scene.render.width, scene.render.height);
     let outcome = Arc::new(Mutex::new(None));
@@ -124,6 +131,7 @@ pub fn run(scene: Scene, options: ViewOptions) -> Result<ScriptStats, ViewError>
         volume: Arc::new(prepared.volume),
         geometry: prepared.geometry,
         series,
+        pyramid,
         options: options.clone(),
         outcome: outcome.clone(),
         scene,
@@ -194,19 +202,37 @@ fn present_mode() -> Result<eframe::wgpu::PresentMode, ViewError> {
     })
 }
 
-/// The input as a series of more than one frame (with the frame to show
-/// first: the one nearest `--time`, else the first) and that frame's
-/// volume; or a single volume.
-fn open_input(scene: &Scene) -> Result<(Option<(Series, usize)>, voxcast::Volume), ViewError> {
+/// What the viewer shows: a series of more than one frame (with the frame
+/// to show first: the one nearest `--time`, else the first) and that
+/// frame's volume; a store of several levels (without `--level`) and its
+/// coarsest level, to be refined; or a single volume.
+type Input = (Option<(Series, usize)>, Option<Pyramid>, voxcast::Volume);
+
+fn open_input(scene: &Scene) -> Result<Input, ViewError> {
     let path = &scene.input.path;
     if !path.starts_with(BUILTIN_PREFIX) {
         let opts = &scene.input.options;
+        let budget = voxcast::render::outofcore::default_budget();
+        if let Some(p) = Pyramid::open(std::path::Path::new(path), opts, budget)? {
+            let v = p.read(p.coarsest)?;
+            if p.finest > 0 {
+                use voxcast::render::outofcore::human_bytes;
+                eprintln!(
+                    "note: {path}: level 0 is {} decoded, and the viewer holds about two copies within half the memory available ({}): it refines down to level {} ({}); `voxcast render` renders level 0 out of core",
+                    human_bytes(p.bytes(0)),
+                    human_bytes(budget),
+                    p.finest,
+                    human_bytes(p.bytes(p.finest)),
+                );
+            }
+            return Ok((None, Some(p), v));
+        }
         let series = Series::open(std::path::Path::new(path), opts)?;
         if series.len() > 1 {
             let frame = opts.time.map_or(0, |t| series.nearest(t));
             let v = series.load(frame, opts)?;
-            return Ok((Some((series, frame)), v));
+            return Ok((Some((series, frame)), None, v));
         }
     }
-    Ok((None, scene.load_volume()?))
+    Ok((None, None, scene.load_volume()?))
 }

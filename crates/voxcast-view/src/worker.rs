@@ -1,8 +1,9 @@
 //! The render thread: the UI never waits for a render. The UI puts its
 //! newest request in a one-place mailbox (a newer request replaces one not
 //! yet started, so stale frames are skipped, never queued); the thread takes
-//! it, loads the frame of a series if it changed, renders, and sends the
-//! image back with a wake-up for the UI.
+//! it, loads the frame of a series if it changed (or takes the level of a
+//! store that the level loader has read), renders, and sends the image back
+//! with a wake-up for the UI.
 //!
 //! A full-quality frame in progress is cancelled when a newer request
 //! arrives (the CPU renderer checks the flag per tile), so moving the camera
@@ -11,6 +12,7 @@
 //! it is the newest image there is until the next one is done.
 
 use crate::backend::{self, FrameRenderer};
+use crate::levels::LevelSlots;
 use crate::progressive::Quality;
 use crate::tf_model::LogHistogram;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -34,7 +36,8 @@ pub const HISTOGRAM_BINS: usize = 256;
 pub struct Request {
     /// Increases with every request; replies carry it.
     pub generation: u64,
-    /// Frame of the series (0 for a single volume).
+    /// Frame of the series, or level of the store shown coarse first (0
+    /// for a single volume).
     pub frame: usize,
     /// Data values mapped to 0…1.
     pub window: [f32; 2],
@@ -82,6 +85,10 @@ pub enum Source {
     Single,
     /// A series, loaded frame by frame with these options.
     Series(Box<Series>, OpenOptions),
+    /// The levels of a store, coarsest first: a request's `frame` is the
+    /// level, taken from here once the level loader has read it
+    /// ([`crate::levels`]).
+    Levels(Arc<LevelSlots>),
 }
 
 /// The one-place mailbox.
@@ -328,19 +335,23 @@ impl Thread {
         }
     }
 
-    /// Loads `req.frame` and computes the histogram for `req.window` when
-    /// either changed.
+    /// Loads `req.frame` (a level: takes it) and computes the histogram for
+    /// `req.window` when either changed.
     fn switch(&mut self, req: &Request) -> Result<(), String> {
         if req.frame == self.frame && Some(req.window) == self.window {
             return Ok(());
         }
         let start = Instant::now();
         if req.frame != self.frame {
-            let Source::Series(series, options) = &self.source else {
-                return Err(format!("frame {}: the input is a single volume", req.frame));
+            self.volume = match &self.source {
+                Source::Series(series, options) => {
+                    Arc::new(series.load(req.frame, options).map_err(|e| e.to_string())?)
+                }
+                Source::Levels(levels) => levels.take(req.frame)?,
+                Source::Single => {
+                    return Err(format!("frame {}: the input is a single volume", req.frame))
+                }
             };
-            let v = series.load(req.frame, options).map_err(|e| e.to_string())?;
-            self.volume = Arc::new(v);
             self.frame = req.frame;
         }
         self.window = Some(req.window);
@@ -490,6 +501,48 @@ mod tests {
         let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
         assert!(
             matches!(&r, Reply::Error { generation: 8, message } if message.contains("single")),
+            "{r:?}"
+        );
+    }
+
+    #[test]
+    fn a_store_level_is_taken_from_the_slots_without_reading() {
+        let coarse = voxcast::builtin::open("marschner-lobb").unwrap();
+        let fine = Arc::new(voxcast::builtin::open("sphere").unwrap());
+        let slots = Arc::new(LevelSlots::default());
+        let source = Source::Levels(slots.clone());
+        let w = Worker::spawn(Device::Cpu, source, 2, Arc::new(coarse), None, || {});
+        let mut req = request(1);
+        req.frame = 2;
+        w.submit(req);
+        let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(matches!(r, Reply::Volume { frame: 2, .. }), "{r:?}");
+        let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(matches!(r, Reply::Frame { frame: 2, .. }), "{r:?}");
+        // Level 0 is not read yet: an error, not a wait.
+        let mut req = request(2);
+        req.frame = 0;
+        w.submit(req.clone());
+        let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(
+            matches!(&r, Reply::Error { generation: 2, message } if message.contains("level 0")),
+            "{r:?}"
+        );
+        slots.put(0, fine);
+        req.generation = 3;
+        w.submit(req);
+        let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(matches!(r, Reply::Volume { frame: 0, .. }), "{r:?}");
+        let r = w.replies.recv_timeout(Duration::from_secs(60)).unwrap();
+        assert!(
+            matches!(
+                r,
+                Reply::Frame {
+                    generation: 3,
+                    frame: 0,
+                    ..
+                }
+            ),
             "{r:?}"
         );
     }

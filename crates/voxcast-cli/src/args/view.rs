@@ -22,6 +22,12 @@ colour is picked under the editor. Series (frame folders from `voxcast
 simulate`/`voxcast cloud`, FDS .smv, folders or globs of volume files) get a
 time slider and play.
 
+An OME-Zarr store opens at once at its coarsest level; finer levels are read
+in the background, down to the finest that fits in memory (level 0 unless it
+is too large), and each replaces the one shown as it arrives (the stats bar
+says which level is shown). The view keeps turning meanwhile. --level N shows
+level N only.
+
 `Save scene` writes a scene file that `voxcast render --scene FILE` renders to
 the same image as the view (same camera, transfer function, method and
 size); `screenshot` writes the view's pixels as PNG.
@@ -83,11 +89,16 @@ impl ViewArgs {
     /// 800×600.
     pub fn scene(&self) -> Result<Scene> {
         let from_file = self.scene.scene.is_some();
-        self.scene.scene_with(self.method.as_deref(), |scene| {
+        let mut scene = self.scene.scene_with(self.method.as_deref(), |scene| {
             if !from_file {
                 scene.render.width = 800;
                 scene.render.height = 600;
             }
-        })
+        })?;
+        // `--level N`: that level only (`SceneArgs::apply` leaves it out).
+        if let Some(l) = self.scene.open.level {
+            scene.input.options.level = Some(l);
+        }
+        Ok(scene)
     }
 }

@@ -63,6 +63,10 @@ pub fn run(a: ViewArgs) -> Result<()> {
                 .map_or("?".into(), |t| format!("{t:.0}")),
         );
     }
+    if !stats.levels.is_empty() {
+        let shown: Vec<String> = stats.levels.iter().map(|l| l.to_string()).collect();
+        eprintln!("levels shown: {}", shown.join(" → "));
+    }
     if let Some(f) = &a.stats_json {
         let json = serde_json::to_string_pretty(&stats)?;
         outputs.write(f, |w| writeln!(w, "{json}"))?;

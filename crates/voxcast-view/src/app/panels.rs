@@ -128,6 +128,17 @@ impl ViewerApp {
             if let Some(t) = &self.time {
                 text += &format!(" · frame {}/{} {}", t.frame + 1, t.times.len(), t.label());
             }
+            if let Some(l) = &self.levels {
+                let shown = self.shown.as_ref().map_or(l.level, |s| s.frame);
+                text += &format!(" · level {shown} of 0…{}", l.coarsest);
+                if l.refining() || shown != l.level {
+                    text += ", refining…";
+                } else if l.failed.is_some() {
+                    text += ", refining failed";
+                } else if l.finest > 0 {
+                    text += " (the finest that fits in memory)";
+                }
+            }
             ui.monospace(text);
             if !self.message.is_empty() {
                 ui.colored_label(Color32::from_rgb(255, 200, 120), &self.message);

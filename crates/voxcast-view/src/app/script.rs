@@ -42,11 +42,13 @@ impl ViewerApp {
             return;
         }
         let Some(s) = &mut self.script else { return };
+        // The refined image: full quality, and of the finest level a store
+        // is read down to.
         let refined = self.shown.as_ref().is_some_and(|sh| {
             sh.generation == self.version
                 && sh.quality == Quality::Full
                 && sh.painted_at < self.ui_frame
-        });
+        }) && !self.levels.as_ref().is_some_and(|l| l.refining());
         if !(orbit_done && refined && self.ui_frame >= s.exit_after) {
             return;
         }
