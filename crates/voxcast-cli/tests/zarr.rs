@@ -105,6 +105,9 @@ fn a_converted_store_renders_out_of_core_as_in_core() {
         d,
     );
     assert!(said.contains("level 0 of 0…2"), "{said}");
+    // A level that is not there is named.
+    let e = fails(&["render", "demo.zarr", "-o", "f.png", "--level", "7"], d);
+    assert!(e.contains("--level 7") && e.contains("0…2"), "{e}");
     // info lists the levels.
     let o = voxcast(&["info", "demo.zarr"], d);
     let text = String::from_utf8_lossy(&o.stdout);

@@ -344,6 +344,9 @@ impl SceneArgs {
         if o.time.is_some() {
             scene.input.options.time = o.time;
         }
+        if o.level.is_some() {
+            scene.input.options.level = o.level;
+        }
         if let Some(tf) = &self.tf {
             scene.transfer.tf = tf.clone();
             scene.transfer.map = None;

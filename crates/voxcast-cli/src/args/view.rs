@@ -95,10 +95,6 @@ impl ViewArgs {
                 scene.render.height = 600;
             }
         })?;
-        // `--level N`: that level only (`SceneArgs::apply` leaves it out).
-        if let Some(l) = self.scene.open.level {
-            scene.input.options.level = Some(l);
-        }
         Ok(scene)
     }
 }

@@ -427,7 +427,7 @@ impl PyramidWriter {
     /// The next slices of level 0 (whole x–y slices, z in order).
     pub fn push(&mut self, slab: VoxelData) -> Result<()> {
         let area = (self.dims[0] * self.dims[1]) as usize;
-        if slab.len() % area != 0 {
+        if !slab.len().is_multiple_of(area) {
             return Err(Error::invalid(format!(
                 "a slab of {} voxels is not whole slices of {}×{}",
                 slab.len(),
@@ -529,7 +529,7 @@ fn push_level<T: Elem>(
             pairs.extend_from_slice(&slices[..area.min(slices.len())]);
             first = 1;
         } else {
-            debug_assert!(z_start % 2 == 0);
+            debug_assert!(z_start.is_multiple_of(2));
         }
         let left = n as usize - first.min(n as usize);
         let even = left / 2 * 2;
