@@ -259,3 +259,77 @@ fn a_damaged_store_is_a_clear_error_or_a_warning() {
     let e = fails(&["info", "s.zarr"], d);
     assert!(e.contains("zarr.json") && e.contains("JSON"), "{e}");
 }
+
+#[test]
+fn raw_files_and_stores_convert_slab_by_slab_to_the_same_voxels() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A raw u16 file, big-endian after a 7-byte header, 70×50×90 (several
+    // slabs of 64 MiB would need a larger file; the path is the same).
+    let (x, y, z) = (70u32, 50u32, 90u32);
+    let mut bytes = vec![1u8; 7];
+    for k in 0..z {
+        for j in 0..y {
+            for i in 0..x {
+                let v = ((i * 7 + j * 13 + k * 29) % 4000) as u16 * ((i / 20 + k / 30) % 2) as u16;
+                bytes.extend_from_slice(&v.to_be_bytes());
+            }
+        }
+    }
+    std::fs::write(d.join("v.raw"), &bytes).unwrap();
+    let raw = [
+        "--raw-dims",
+        "70,50,90",
+        "--raw-type",
+        "u16",
+        "--raw-endian",
+        "big",
+        "--raw-header-bytes",
+        "7",
+    ];
+    let mut a = vec!["convert", "v.raw", "-o", "r.zarr", "--chunk", "16,32,8"];
+    a.extend(raw);
+    let said = ok(&a, d);
+    assert!(said.contains("streaming"), "{said}");
+    // The same voxels as the in-core reader gives.
+    let mut b = vec![
+        "render", "v.raw", "-o", "a.png", "--size", "64x64", "--tf", "fire",
+    ];
+    b.extend(raw);
+    ok(&b, d);
+    let args = |input: &'static str, out: &'static str| {
+        vec![
+            "render", input, "-o", out, "--size", "64x64", "--tf", "fire", "--level", "0",
+        ]
+    };
+    ok(&args("r.zarr", "b.png"), d);
+    assert_eq!(psnr("a.png", "b.png", d), None);
+    // A store rechunked and recompressed into v2, from level 0, slab by slab.
+    let said = ok(
+        &[
+            "convert",
+            "r.zarr",
+            "-o",
+            "s.zarr",
+            "--chunk",
+            "32",
+            "--zarr-version",
+            "2",
+            "--compression",
+            "blosc",
+        ],
+        d,
+    );
+    assert!(said.contains("streaming"), "{said}");
+    assert!(d.join("s.zarr/.zattrs").is_file());
+    ok(&args("s.zarr", "c.png"), d);
+    assert_eq!(psnr("a.png", "c.png", d), None);
+    // A raw file shorter than its layout is refused before anything is
+    // written.
+    std::fs::write(d.join("short.raw"), &bytes[..1000]).unwrap();
+    let mut a = vec!["convert", "short.raw", "-o", "t.zarr"];
+    a.extend(raw);
+    let e = fails(&a, d);
+    assert!(e.contains("short.raw") && e.contains("truncated"), "{e}");
+    assert!(!d.join("t.zarr").exists());
+}

@@ -14,14 +14,18 @@ written, and every chunk's value range is kept beside each level
 (voxcast-chunk-ranges.bin), so voxcast skips transparent chunks without
 reading them.
 
-The store is written slab by slab: a built-in volume generated at any size
-(--dims, --type) never exists whole in memory. It is written under a temporary
+The store is written slab by slab. A built-in volume generated at any size
+(--dims, --type), a raw file (--raw-dims, --raw-type) and a Zarr store
+(level 0, or --level N: rechunk or recompress it) are read slab by slab too
+and never exist whole in memory; other formats are read whole first. It is written under a temporary
 name beside OUTPUT and renamed when complete; an existing OUTPUT is replaced
 only with --overwrite, and only if it is a Zarr store.
 
 Examples:
   voxcast convert ../shared/data/mr_head/HeadMRVolume.mhd -o head.zarr
   voxcast convert scan.nrrd -o scan.zarr --chunk 128 --compression blosc
+  voxcast convert ct.raw --raw-dims 2048,2048,1500 --raw-type u16 -o ct.zarr
+  voxcast convert old.zarr -o new.zarr --zarr-version 2 --chunk 32
   voxcast convert builtin:fractal --dims 2048,2048,2048 --type u16 -o big.zarr  # 16 GiB
   voxcast render big.zarr --memory-budget 2GiB -o big.png   # out of core";
 

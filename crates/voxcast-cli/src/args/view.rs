@@ -89,12 +89,11 @@ impl ViewArgs {
     /// 800×600.
     pub fn scene(&self) -> Result<Scene> {
         let from_file = self.scene.scene.is_some();
-        let mut scene = self.scene.scene_with(self.method.as_deref(), |scene| {
+        self.scene.scene_with(self.method.as_deref(), |scene| {
             if !from_file {
                 scene.render.width = 800;
                 scene.render.height = 600;
             }
-        })?;
-        Ok(scene)
+        })
     }
 }

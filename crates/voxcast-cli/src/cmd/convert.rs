@@ -13,6 +13,7 @@ use voxcast::io::zarr::write::{
 };
 use voxcast::render::outofcore::human_bytes;
 use voxcast::scene::Scene;
+use voxcast::volume::ChunkedSource;
 use voxcast::ScalarType;
 
 pub fn run(a: ConvertArgs) -> Result<()> {
@@ -35,33 +36,7 @@ pub fn run(a: ConvertArgs) -> Result<()> {
     };
     let out = &a.output;
     check_output(out, &a.input, a.overwrite)?;
-    let builtin = a.input.strip_prefix(voxcast::builtin::PREFIX);
-    let sized = match (&a.dims, builtin) {
-        (Some(d), Some(name)) => {
-            let dims: Vec<u64> = d
-                .split(',')
-                .map(|p| p.trim().parse::<u64>())
-                .collect::<std::result::Result<_, _>>()
-                .ok()
-                .filter(|v: &Vec<u64>| v.len() == 3 && !v.contains(&0))
-                .with_context(|| {
-                    format!("--dims {d}: expected three positive whole numbers X,Y,Z")
-                })?;
-            let ty = ScalarType::parse(&a.scalar_type).with_context(|| {
-                format!("--type {}: expected u8, u16, i16 or f32", a.scalar_type)
-            })?;
-            if !voxcast::builtin::SIZED.contains(&name) {
-                bail!(
-                    "--dims: {} is not generated at other sizes (these are: {})",
-                    a.input,
-                    voxcast::builtin::SIZED.join(", ")
-                );
-            }
-            Some((name, [dims[0], dims[1], dims[2]], ty))
-        }
-        (Some(_), None) => bail!("--dims is for builtin:NAME inputs (a file has its own size)"),
-        (None, _) => None,
-    };
+    let stream = Stream::for_input(&a)?;
     // Everything is written under a temporary name beside the output and
     // renamed when complete.
     let tmp = temp_beside(out, "partial")?;
@@ -77,13 +52,15 @@ pub fn run(a: ConvertArgs) -> Result<()> {
     }
     let start = Instant::now();
     let result = (|| -> Result<(voxcast::io::zarr::write::WriteStats, [u64; 3], f64)> {
-        match sized {
-            Some((name, dims, ty)) => {
+        match stream {
+            Some(src) => {
+                let (dims, ty) = (src.dims, src.ty);
                 let levels = level_dims(dims, &opts);
                 if !a.quiet {
                     eprintln!(
-                        "generating {}{name} at {}×{}×{} {ty} ({}) into {} levels of {}×{}×{} chunks",
-                        voxcast::builtin::PREFIX,
+                        "{} {} at {}×{}×{} {ty} ({}) slab by slab into {} levels of {}×{}×{} chunks",
+                        if matches!(src.kind, Kind::Builtin(_)) { "generating" } else { "streaming" },
+                        a.input,
                         dims[0],
                         dims[1],
                         dims[2],
@@ -97,8 +74,8 @@ pub fn run(a: ConvertArgs) -> Result<()> {
                 let mut w = PyramidWriter::create(
                     &tmp,
                     dims,
-                    glam::Vec3::ONE,
-                    glam::Vec3::ZERO,
+                    src.spacing,
+                    src.origin,
                     ty,
                     &a.input,
                     &opts,
@@ -110,7 +87,7 @@ pub fn run(a: ConvertArgs) -> Result<()> {
                 let mut z = 0;
                 while z < dims[2] {
                     let z1 = (z + step).min(dims[2]);
-                    w.push(voxcast::builtin::slab(name, dims, ty, z, z1)?)?;
+                    w.push(src.slab(z, z1)?)?;
                     z = z1;
                     bar.set_position(z);
                     bar.set_message(rate(z * area, start));
@@ -186,6 +163,126 @@ pub fn run(a: ConvertArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// An input read slab by slab: a built-in volume generated at any size, a
+/// raw file, or a level of a Zarr store. Other readers load whole volumes.
+struct Stream {
+    kind: Kind,
+    dims: [u64; 3],
+    ty: ScalarType,
+    spacing: glam::Vec3,
+    origin: glam::Vec3,
+}
+
+enum Kind {
+    Builtin(String),
+    Raw(PathBuf, voxcast::io::RawLayout),
+    Zarr(Box<voxcast::io::zarr::ZarrStore>, usize),
+}
+
+impl Stream {
+    /// The streaming source for `a`'s input, or `None` for a reader that
+    /// loads whole volumes.
+    fn for_input(a: &ConvertArgs) -> Result<Option<Stream>> {
+        let opts = a.open.options()?;
+        let spacing = opts.spacing.map(glam::Vec3::from);
+        if let Some(name) = a.input.strip_prefix(voxcast::builtin::PREFIX) {
+            let Some(d) = &a.dims else {
+                return Ok(None);
+            };
+            let dims: Vec<u64> = d
+                .split(',')
+                .map(|p| p.trim().parse::<u64>())
+                .collect::<std::result::Result<_, _>>()
+                .ok()
+                .filter(|v: &Vec<u64>| v.len() == 3 && !v.contains(&0))
+                .with_context(|| {
+                    format!("--dims {d}: expected three positive whole numbers X,Y,Z")
+                })?;
+            let ty = ScalarType::parse(&a.scalar_type).with_context(|| {
+                format!("--type {}: expected u8, u16, i16 or f32", a.scalar_type)
+            })?;
+            if !voxcast::builtin::SIZED.contains(&name) {
+                bail!(
+                    "--dims: {} is not generated at other sizes (these are: {})",
+                    a.input,
+                    voxcast::builtin::SIZED.join(", ")
+                );
+            }
+            let dims = [dims[0], dims[1], dims[2]];
+            voxcast::volume::checked_voxel_count(dims)
+                .map_err(|m| anyhow::anyhow!("--dims {d}: {m}"))?;
+            return Ok(Some(Stream {
+                kind: Kind::Builtin(name.to_string()),
+                dims,
+                ty,
+                spacing: spacing.unwrap_or(glam::Vec3::ONE),
+                origin: glam::Vec3::ZERO,
+            }));
+        }
+        if a.dims.is_some() {
+            bail!("--dims is for builtin:NAME inputs (a file has its own size)");
+        }
+        let path = Path::new(&a.input);
+        if let Some(layout) = opts.raw.clone() {
+            let (_, need) =
+                voxcast::io::util::check_dims(path, "--raw-dims", layout.dims, layout.scalar_type)?;
+            let len = voxcast::files::regular_file(path)?.len();
+            if len < layout.header_bytes.saturating_add(need) {
+                bail!(
+                    "{}: --raw-dims/--raw-type describe {need} bytes of voxels after byte {} but the file has {len} bytes (truncated file or wrong dims/type)",
+                    path.display(),
+                    layout.header_bytes
+                );
+            }
+            return Ok(Some(Stream {
+                kind: Kind::Raw(path.to_path_buf(), layout.clone()),
+                dims: layout.dims,
+                ty: layout.scalar_type,
+                spacing: spacing.unwrap_or(glam::Vec3::ONE),
+                origin: glam::Vec3::ZERO,
+            }));
+        }
+        if voxcast::io::detect(path, &opts).ok() == Some(voxcast::io::Format::Zarr) {
+            let store = voxcast::io::zarr::ZarrStore::open_with(path, &opts)?;
+            let n = store.levels().len();
+            let level = opts.level.unwrap_or(0);
+            if level >= n {
+                bail!("--level {level}: {} has levels 0…{}", path.display(), n - 1);
+            }
+            let l = store.levels()[level].clone();
+            return Ok(Some(Stream {
+                dims: l.dims,
+                ty: store.scalar_type(),
+                spacing: spacing.unwrap_or(l.spacing),
+                origin: l.origin,
+                kind: Kind::Zarr(Box::new(store), level),
+            }));
+        }
+        Ok(None)
+    }
+
+    /// Slices `z0..z1`, x fastest.
+    fn slab(&self, z0: u64, z1: u64) -> Result<voxcast::VoxelData> {
+        let d = self.dims;
+        Ok(match &self.kind {
+            Kind::Builtin(name) => voxcast::builtin::slab(name, d, self.ty, z0, z1)?,
+            Kind::Raw(path, layout) => {
+                let area = d[0] * d[1] * self.ty.size() as u64;
+                voxcast::io::util::read_payload(
+                    path,
+                    layout.header_bytes + z0 * area,
+                    (z1 - z0) * area,
+                    self.ty,
+                    layout.big_endian,
+                    false,
+                    "--raw-dims/--raw-type",
+                )?
+            }
+            Kind::Zarr(store, level) => store.read_box(*level, [0, 0, z0], [d[0], d[1], z1])?,
+        })
+    }
 }
 
 fn rate(bytes: u64, start: Instant) -> String {
