@@ -92,23 +92,18 @@ pub fn run(a: RenderArgs) -> Result<()> {
             .context("rendering on the GPU")?,
     };
     bar.finish_and_clear();
-    image.write_into(&mut outputs, &out)?;
-    if let Some(f) = &a.float_out {
-        image.write_exr_into(&mut outputs, f)?;
-    }
-    if let Some(f) = &a.stats_json {
-        // The core's stats plus the device that rendered.
-        let mut value = serde_json::to_value(stats)?;
-        if let serde_json::Value::Object(m) = &mut value {
-            m.insert("device".into(), device.describe().into());
-        }
-        let json = serde_json::to_string_pretty(&value)?;
-        outputs.write(f, |w| writeln!(w, "{json}"))?;
-    }
-    if let Some(f) = &a.save_scene {
-        let text = scene.resolved(&prepared).to_toml(f)?;
-        outputs.write(f, |w| w.write_all(text.as_bytes()))?;
-    }
+    let mut extra = serde_json::Map::new();
+    extra.insert("device".into(), device.describe().into());
+    write_outputs(
+        &a,
+        &mut outputs,
+        &out,
+        &image,
+        &stats,
+        extra,
+        &scene,
+        &prepared,
+    )?;
     outputs.commit()?;
     if !quiet {
         eprintln!(
@@ -142,6 +137,39 @@ pub fn prepare(
         eprintln!("{}", loaded(scene, &prepared, t_load));
     }
     Ok(prepared)
+}
+
+/// Writes the image to `out` and the optional outputs `a` asks for:
+/// `--float-out`, `--stats-json` (the core's stats with `extra`'s keys
+/// added) and `--save-scene`. The caller commits.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn write_outputs(
+    a: &RenderArgs,
+    outputs: &mut Outputs,
+    out: &std::path::Path,
+    image: &voxcast::Image,
+    stats: &voxcast::RenderStats,
+    extra: serde_json::Map<String, serde_json::Value>,
+    scene: &Scene,
+    prepared: &voxcast::scene::Prepared,
+) -> Result<()> {
+    image.write_into(outputs, out)?;
+    if let Some(f) = &a.float_out {
+        image.write_exr_into(outputs, f)?;
+    }
+    if let Some(f) = &a.stats_json {
+        let mut value = serde_json::to_value(stats)?;
+        if let serde_json::Value::Object(m) = &mut value {
+            m.extend(extra);
+        }
+        let json = serde_json::to_string_pretty(&value)?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
+    }
+    if let Some(f) = &a.save_scene {
+        let text = scene.resolved(prepared).to_toml(f)?;
+        outputs.write(f, |w| w.write_all(text.as_bytes()))?;
+    }
+    Ok(())
 }
 
 /// The line saying what was loaded.

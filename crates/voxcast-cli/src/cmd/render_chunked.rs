@@ -5,7 +5,7 @@
 use crate::args::RenderArgs;
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use std::io::{IsTerminal, Write};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -183,24 +183,20 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
         &AtomicBool::new(false),
     )?;
     bar.finish_and_clear();
-    image.write_into(&mut outputs, &out)?;
-    if let Some(f) = &a.float_out {
-        image.write_exr_into(&mut outputs, f)?;
-    }
-    if let Some(f) = &a.stats_json {
-        let mut value = serde_json::to_value(stats)?;
-        if let serde_json::Value::Object(m) = &mut value {
-            m.insert("device".into(), "cpu, out of core".into());
-            m.insert("out_of_core".into(), serde_json::to_value(oo)?);
-            m.insert("budget_bytes".into(), ooc.budget.into());
-        }
-        let json = serde_json::to_string_pretty(&value)?;
-        outputs.write(f, |w| writeln!(w, "{json}"))?;
-    }
-    if let Some(f) = &a.save_scene {
-        let text = scene.resolved(&prepared).to_toml(f)?;
-        outputs.write(f, |w| w.write_all(text.as_bytes()))?;
-    }
+    let mut extra = serde_json::Map::new();
+    extra.insert("device".into(), "cpu, out of core".into());
+    extra.insert("out_of_core".into(), serde_json::to_value(oo)?);
+    extra.insert("budget_bytes".into(), ooc.budget.into());
+    super::render::write_outputs(
+        a,
+        &mut outputs,
+        &out,
+        &image,
+        &stats,
+        extra,
+        scene,
+        &prepared,
+    )?;
     outputs.commit()?;
     if !quiet {
         eprintln!(
