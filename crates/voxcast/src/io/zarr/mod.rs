@@ -17,7 +17,7 @@
 //! Types: u8, u16, i16 and f32 are read as they are; i8 as i16; u32,
 //! i32, u64, i64 and f64 as f32 (the only wider type a volume holds).
 //!
-//! Stores that `voxcast convert` writes ([`write`]) keep each level's
+//! Stores that `voxcast convert` writes ([`mod@write`]) keep each level's
 //! per-chunk value range in a sidecar (`voxcast-chunk-ranges.bin`, beside
 //! the level's array metadata), so the renderer skips transparent chunks
 //! without reading them; other tools ignore it.

@@ -17,7 +17,7 @@
 //! 4. **March**: each brick, with a border of one voxel (two with shading)
 //!    copied from its neighbours, marches the samples of every pixel whose
 //!    ray crosses it, in parallel by rows; each pixel keeps its colour,
-//!    opacity and next sample index between bricks ([`march`]), so the
+//!    opacity and next sample index between bricks (the `march` module), so the
 //!    picture is the in-core `uniform` march's, and a brick is read once
 //!    per frame whatever the budget.
 //! 5. **Cache and prefetch**: decoded chunks live in an LRU cache within
