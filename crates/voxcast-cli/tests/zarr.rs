@@ -152,6 +152,16 @@ fn convert_refuses_to_lose_data() {
     let o = voxcast(&["info", "s.zarr", "--json"], d);
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["dims"], serde_json::json!([128, 128, 128]));
+    // info's JSON lists the levels for scripts.
+    let z = &j["zarr"];
+    assert_eq!(z["ome_version"], "0.5");
+    assert_eq!(z["levels"][1]["dims"], serde_json::json!([64, 64, 64]));
+    assert_eq!(
+        z["levels"][1]["spacing"],
+        serde_json::json!([2.0, 2.0, 2.0])
+    );
+    assert_eq!(z["levels"][0]["chunk"], serde_json::json!([64, 64, 64]));
+    assert_eq!(z["levels"][0]["chunk_ranges"], true);
     // Bad flags, each named.
     for (args, want) in [
         (vec!["--chunk", "0"], "--chunk"),

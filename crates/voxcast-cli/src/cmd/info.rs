@@ -26,7 +26,36 @@ pub fn run(a: InfoArgs) -> Result<()> {
         scene.input.options.level = Some(level);
         let mut lines = store.summary();
         lines.push(format!("statistics below: level {level}"));
-        Some(lines)
+        // The same for scripts: one object per level.
+        let i = store.info();
+        let ty = store.scalar_type();
+        let levels: Vec<serde_json::Value> = store
+            .levels()
+            .iter()
+            .zip(&i.levels)
+            .map(|(l, li)| {
+                serde_json::json!({
+                    "path": li.path,
+                    "dims": l.dims,
+                    "spacing": l.spacing.to_array(),
+                    "origin": l.origin.to_array(),
+                    "chunk": l.chunk,
+                    "codecs": li.codecs,
+                    "bytes": l.bytes(ty),
+                    "chunk_ranges": li.has_ranges,
+                })
+            })
+            .collect();
+        let json = serde_json::json!({
+            "zarr_format": i.zarr_format,
+            "ome_version": i.ome_version,
+            "data_type": i.stored.name(),
+            "fill_value": i.fill,
+            "axes": i.axes.iter().map(|(n, k, u)| serde_json::json!({"name": n, "type": k, "unit": u})).collect::<Vec<_>>(),
+            "levels": levels,
+            "statistics_level": level,
+        });
+        Some((lines, json))
     } else {
         None
     };
@@ -87,7 +116,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
             "fds": fds,
             "wrf": wrf,
             "dicom": dicom,
-            "zarr": zarr,
+            "zarr": zarr.as_ref().map(|z| &z.1),
             "header": header.as_ref().map(|(_, lines)| lines),
             "time": vol.time,
         });
@@ -155,7 +184,7 @@ pub fn run(a: InfoArgs) -> Result<()> {
             println!("    {l}");
         }
     }
-    if let Some(lines) = &zarr {
+    if let Some((lines, _)) = &zarr {
         println!("  Zarr store");
         for l in lines {
             println!("    {l}");
