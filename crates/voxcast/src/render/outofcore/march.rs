@@ -6,6 +6,7 @@
 
 use crate::render::march::intersect_box;
 use crate::render::optics::over_front;
+use crate::render::packet::Lane;
 use crate::render::shading::BlinnPhong;
 use crate::transfer::{Lut, LUT_SIZE};
 use crate::volume::{Grid, Voxel};
@@ -96,6 +97,39 @@ pub(super) struct RowCount {
     pub samples: u64,
     pub shaded: u64,
     pub terminated: u64,
+}
+
+/// The packets' lane for the samples of `px` in the brick but the ray's
+/// last (which the scalar [`march`] composites with its stretch): the
+/// brick's own box clipped as [`march`] clips it, in the brick's voxel
+/// coordinates. `None` when there is no such sample.
+pub(super) fn lane<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<Lane> {
+    if !px.live {
+        return None;
+    }
+    let (ta, tb) = intersect_box(px.o, Vec3::ONE / px.d, f.own_lo, f.own_hi)?;
+    let first = ((ta - px.t0) / f.st).ceil().max(0.0);
+    let k0 = px.next.max(first.min(u32::MAX as f32) as u32);
+    // The first sample at or past the brick's exit, by the scalar loop's
+    // own test `t >= tb`.
+    let mut kb = ((tb - px.t0) / f.st).ceil().max(0.0).min(u32::MAX as f32) as u32;
+    while kb > 0 && px.t0 + (kb - 1) as f32 * f.st >= tb {
+        kb -= 1;
+    }
+    while kb < u32::MAX && px.t0 + kb as f32 * f.st < tb {
+        kb += 1;
+    }
+    let k_end = kb.min(px.last);
+    (k0 < k_end).then(|| Lane {
+        o: px.o - f.data_lo,
+        d: px.d,
+        view: px.view,
+        t0: px.t0,
+        t_end: px.t_end,
+        k0,
+        k_end,
+        last: None,
+    })
 }
 
 /// Marches the samples of `px` that fall in the brick.

@@ -35,12 +35,15 @@ pub use cache::{human_bytes, parse_bytes, CacheStats};
 use crate::camera::{Camera, CameraParams};
 use crate::error::{Error, Result};
 use crate::image::Image;
+use crate::render::composite::Weights;
+use crate::render::packet;
+use crate::render::ray::Frame;
 use crate::render::shading::BlinnPhong;
 use crate::render::{Method, Order, RenderParams, RenderStats};
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
 use crate::volume::{ChunkRange, ChunkedSource, Grid, Level, ScalarType, Voxel, VoxelData};
 use cache::ChunkCache;
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use march::{BrickFrame, Px, RowCount};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -325,6 +328,10 @@ impl<'s> OutOfCore<'s> {
         let level = &levels[lidx];
         let ty = source.scalar_type();
         let shading = params.shading.then(BlinnPhong::default);
+        // Eight rays per SIMD packet where the CPU and the shading allow
+        // (the in-core rule), else the scalar loop.
+        let packets = crate::render::packet::level(params.simd)
+            .filter(|_| shading.is_none_or(|bp| crate::render::packet::shades(&bp)));
         let geo = Geo {
             level,
             lidx,
@@ -586,6 +593,7 @@ impl<'s> OutOfCore<'s> {
                     stop,
                     shading,
                     window,
+                    packets,
                 };
                 let c = buf.march(&frame, dims, &mut px, w, b.rect);
                 counts_total.samples += c.samples;
@@ -681,6 +689,8 @@ struct FrameArgs<'a> {
     stop: f32,
     shading: Option<BlinnPhong>,
     window: [f32; 2],
+    /// The SIMD packets' instruction set, `None` for the scalar loop.
+    packets: Option<crate::render::packet::Level>,
 }
 
 /// The brick being marched: its data box copied out of the cached chunks,
@@ -696,10 +706,12 @@ enum BrickBuf {
 trait Stored: Voxel + Default {
     fn of(d: &VoxelData) -> &[Self];
     fn from_f32(v: f32) -> Self;
+    /// The packets' z-paired copy of a u8 brick (empty for other types).
+    fn z_pairs(data: &[Self], dims: [usize; 3]) -> Vec<u16>;
 }
 
 macro_rules! stored {
-    ($t:ty, $var:ident) => {
+    ($t:ty, $var:ident, $zp:expr) => {
         impl Stored for $t {
             fn of(d: &VoxelData) -> &[$t] {
                 match d {
@@ -710,13 +722,16 @@ macro_rules! stored {
             fn from_f32(v: f32) -> $t {
                 v as $t
             }
+            fn z_pairs(data: &[$t], dims: [usize; 3]) -> Vec<u16> {
+                $zp(data, dims)
+            }
         }
     };
 }
-stored!(u8, U8);
-stored!(u16, U16);
-stored!(i16, I16);
-stored!(f32, F32);
+stored!(u8, U8, crate::render::packet::z_pairs);
+stored!(u16, U16, |_, _| Vec::new());
+stored!(i16, I16, |_, _| Vec::new());
+stored!(f32, F32, |_, _| Vec::new());
 
 impl BrickBuf {
     fn new(ty: ScalarType) -> BrickBuf {
@@ -898,7 +913,7 @@ fn visible_cells<T: Voxel>(
     Some((l, h))
 }
 
-fn march_rows<T: Voxel>(
+fn march_rows<T: Stored>(
     data: &[T],
     a: &FrameArgs<'_>,
     dims: [usize; 3],
@@ -922,20 +937,94 @@ fn march_rows<T: Voxel>(
         shading: a.shading,
     };
     let w = w as usize;
-    px[y0 as usize * w..y1 as usize * w]
-        .par_chunks_mut(w)
-        .map(|row| {
-            let mut n = RowCount::default();
-            for p in &mut row[x0 as usize..x1 as usize] {
+    let rows = px[y0 as usize * w..y1 as usize * w].par_chunks_mut(w);
+    let sum = |a: RowCount, b: RowCount| RowCount {
+        samples: a.samples + b.samples,
+        shaded: a.shaded + b.shaded,
+        terminated: a.terminated + b.terminated,
+    };
+    let Some(level) = a.packets.filter(|_| packet::fits(&f.grid)) else {
+        return rows
+            .map(|row| {
+                let mut n = RowCount::default();
+                for p in &mut row[x0 as usize..x1 as usize] {
+                    march::march(&f, p, &mut n);
+                }
+                n
+            })
+            .reduce(RowCount::default, sum);
+    };
+    // Eight pixels per packet: the vector loop marches each ray's samples
+    // inside the brick but its last one, from the colour it holds; the
+    // scalar loop then takes what is left (the ray's last sample, where it
+    // falls in this brick).
+    let z_pairs = T::z_pairs(data, dims);
+    let frame = Frame {
+        grid: &f.grid,
+        lut: a.lut,
+        box_lo: Vec3::ZERO,
+        box_hi: Vec3::from(dims.map(|d| (d - 1) as f32)),
+        origin_w: Vec3::ZERO,
+        inv_spacing: a.inv_spacing,
+        step: a.st,
+        unit: a.unit,
+        skip_empty: false,
+        block_size: 1,
+        block_counts: [1; 3],
+        empty: &[],
+        occupied: None,
+        seed: 0,
+    };
+    let pk = packet::Packets {
+        f: &frame,
+        q: a.q,
+        st: a.st,
+        weights: Weights {
+            emission: a.emission,
+            absorption: a.absorption,
+        },
+        stop: a.stop,
+        jitter: None,
+        empty: None,
+        shading: a.shading,
+        z_pairs: &z_pairs,
+        level,
+        imp: None,
+    };
+    rows.map(|row| {
+        let mut n = RowCount::default();
+        for group in row[x0 as usize..x1 as usize].chunks_mut(packet::LANES) {
+            let mut lanes = [None; packet::LANES];
+            let mut acc = [Vec4::ZERO; packet::LANES];
+            for (i, p) in group.iter().enumerate() {
+                lanes[i] = march::lane(&f, p);
+                acc[i] = p.finish();
+            }
+            if lanes.iter().any(Option::is_some) {
+                let mut count = [[0u32; 2]; packet::LANES];
+                let mut alive = [false; packet::LANES];
+                pk.march_lanes(&lanes, &mut acc, &mut count, &mut alive);
+                for (i, p) in group.iter_mut().enumerate() {
+                    let Some(l) = lanes[i] else { continue };
+                    p.c = acc[i].truncate();
+                    p.a = acc[i].w;
+                    p.next = l.k_end;
+                    n.samples += count[i][0] as u64;
+                    n.shaded += count[i][1] as u64;
+                    if !alive[i] {
+                        p.live = false;
+                        p.terminated = true;
+                        n.terminated += 1;
+                    }
+                }
+            }
+            for p in group.iter_mut() {
                 march::march(&f, p, &mut n);
             }
-            n
-        })
-        .reduce(RowCount::default, |a, b| RowCount {
-            samples: a.samples + b.samples,
-            shaded: a.shaded + b.shaded,
-            terminated: a.terminated + b.terminated,
-        })
+        }
+        n
+    })
+    .reduce(RowCount::default, sum)
 }
 
 #[cfg(test)]

@@ -426,7 +426,21 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
         lane_bits,
     ));
     let mut walked = zero;
-    let (mut cr, mut cg, mut cb, mut ca) = (zero, zero, zero, zero);
+    // Each lane goes on from the colour and opacity it holds (zero for a
+    // new ray; a brick's predecessors' for the out-of-core renderer).
+    let mut start = [[0f32; LANES]; 4];
+    for (i, c) in acc.iter().enumerate() {
+        start[0][i] = c.x;
+        start[1][i] = c.y;
+        start[2][i] = c.z;
+        start[3][i] = c.w;
+    }
+    let (mut cr, mut cg, mut cb, mut ca) = (
+        load(start[0]),
+        load(start[1]),
+        load(start[2]),
+        load(start[3]),
+    );
     let mut cnt = _mm256_setzero_si256();
     let mut cnt_shaded = _mm256_setzero_si256();
     // `importance`: each lane's position, spacing, stretch end and

@@ -172,21 +172,22 @@ pub(super) fn shades(bp: &BlinnPhong) -> bool {
 }
 
 /// One lane's ray, set up by the scalar code as [`super::trace::trace`]
-/// does.
+/// does (or by the out-of-core renderer, from a pixel's state in a brick).
 #[derive(Clone, Copy, Default)]
-struct Lane {
-    o: Vec3,
-    d: Vec3,
+pub(super) struct Lane {
+    /// Origin and direction in the grid's voxel coordinates.
+    pub o: Vec3,
+    pub d: Vec3,
     /// Towards the eye (world), for shading.
-    view: Vec3,
-    t0: f32,
+    pub view: Vec3,
+    pub t0: f32,
     /// Where the last sample's stretch ends (`Segment::t_end`).
-    t_end: f32,
+    pub t_end: f32,
     /// Samples `k0..k_end` go through the vector loop.
-    k0: u32,
-    k_end: u32,
+    pub k0: u32,
+    pub k_end: u32,
     /// The last sample, composited with its stretch to `t_end`.
-    last: Option<u32>,
+    pub last: Option<u32>,
 }
 
 /// A lane's ray as [`super::trace::trace`] sets it up: origin and direction
@@ -362,6 +363,46 @@ impl<T: Voxel> Packets<'_, T> {
         stats.samples += n.samples;
         stats.interpolations += n.interpolations;
         stats.gradient_interpolations += 6 * n.shaded;
+    }
+
+    /// Marches samples `k0..k_end` of each lane through the vector loop,
+    /// from the colour and opacity `acc` holds (premultiplied), without
+    /// skipping; `count` gets each lane's samples and shaded samples,
+    /// `alive` whether it is still going (not terminated early). The
+    /// caller composites a ray's last sample. For the out-of-core renderer,
+    /// whose rays cross brick after brick.
+    pub fn march_lanes(
+        &self,
+        lanes: &[Option<Lane>; LANES],
+        acc: &mut [Vec4; LANES],
+        count: &mut [[u32; 2]; LANES],
+        alive: &mut [bool; LANES],
+    ) {
+        debug_assert!(self.empty.is_none() && self.imp.is_none());
+        let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
+        // SAFETY: as in `row`: the caller took `level` from [`level`],
+        // checked [`fits`] for the grid and [`shades`] for the shading.
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            macro_rules! go {
+                ($f:ident) => {
+                    match self.shading.is_some() {
+                        false => avx2::$f::<T, false, false, false>(
+                            self, lanes, &mut imp, acc, count, alive,
+                        ),
+                        true => avx2::$f::<T, false, true, false>(
+                            self, lanes, &mut imp, acc, count, alive,
+                        ),
+                    }
+                };
+            }
+            match self.level {
+                Level::Avx2 => go!(march_avx2),
+                Level::Avx512 => go!(march_avx512),
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (lanes, acc, count, alive, &mut imp);
     }
 
     /// The last sample of lane `l` (index `k`), composited over its
