@@ -22,26 +22,29 @@
 //! the level's array metadata), so the renderer skips transparent chunks
 //! without reading them; other tools ignore it.
 
+mod meta;
+mod ranges;
+mod summary;
 pub mod write;
+
+use meta::{
+    codec_names, compose_scale, compose_translation, data_type_name, group_attributes, parse_axes,
+    read_json, spatial_axes, transforms,
+};
+pub use ranges::RANGES_FILE;
+use ranges::{read_ranges, Ranges};
 
 use crate::error::{Error, Result};
 use crate::io::OpenOptions;
 use crate::volume::{ChunkRange, ChunkedSource, Level, ScalarType, Volume, VoxelData};
 use glam::Vec3;
-use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use zarrs::array::{Array, ArrayMetadata, ArrayShardedExt, ArraySubset};
+use zarrs::array::{Array, ArrayShardedExt, ArraySubset};
 use zarrs::filesystem::FilesystemStore;
 use zarrs::storage::storage_adapter::performance_metrics::PerformanceMetricsStorageAdapter;
 use zarrs::storage::ReadableStorageTraits;
-
-/// The file beside each level's array metadata that holds its chunks'
-/// value ranges (stores written by `voxcast convert`).
-pub const RANGES_FILE: &str = "voxcast-chunk-ranges.bin";
-/// The sidecar's first 8 bytes.
-const RANGES_MAGIC: &[u8; 8] = b"VXCRNG01";
 
 type Storage = PerformanceMetricsStorageAdapter<FilesystemStore>;
 
@@ -183,12 +186,6 @@ pub struct StoreInfo {
     /// The fill value (what a chunk never written holds).
     pub fill: f64,
     pub levels: Vec<LevelInfo>,
-}
-
-/// Chunk value ranges from the sidecar: per chunk (x fastest) min and max.
-struct Ranges {
-    counts: [u64; 3],
-    minmax: Vec<[f32; 2]>,
 }
 
 /// An open OME-Zarr / Zarr store.
@@ -687,12 +684,8 @@ impl ZarrStore {
         let Some(r) = &self.ranges[level] else {
             return;
         };
-        let i = c[0] + r.counts[0] * (c[1] + r.counts[1] * c[2]);
         let fill = self.info.fill as f32;
-        let had_values = r
-            .minmax
-            .get(i as usize)
-            .is_some_and(|m| !(m[0] == fill && m[1] == fill));
+        let had_values = r.get(c).is_some_and(|m| !(m[0] == fill && m[1] == fill));
         if had_values && !self.warned_missing.swap(true, Ordering::Relaxed) {
             eprintln!(
                 "warning: {}: level {level} ({}) chunk {:?} (x, y, z) is missing from the store though it held values when written; missing chunks render as the fill value {} (further ones are not reported)",
@@ -739,16 +732,10 @@ impl ChunkedSource for ZarrStore {
             self.warn_if_lost(level, c);
             return ChunkRange::Fill(self.info.fill as f32);
         }
-        match &self.ranges[level] {
-            Some(r) => {
-                let i = c[0] + r.counts[0] * (c[1] + r.counts[1] * c[2]);
-                match r.minmax.get(i as usize) {
-                    // All NaN (or the sidecar could not tell): read it.
-                    Some([lo, hi]) if !lo.is_nan() => ChunkRange::Range(*lo, *hi),
-                    _ => ChunkRange::Unknown,
-                }
-            }
-            None => ChunkRange::Unknown,
+        match self.ranges[level].as_ref().and_then(|r| r.get(c)) {
+            // All NaN (or no sidecar): read it to know.
+            Some([lo, hi]) if !lo.is_nan() => ChunkRange::Range(lo, hi),
+            _ => ChunkRange::Unknown,
         }
     }
     fn read_chunk(&self, level: usize, c: [u64; 3]) -> Result<VoxelData> {
@@ -851,319 +838,5 @@ pub fn read(path: &Path, opts: &OpenOptions) -> Result<Volume> {
     Ok(v)
 }
 
-fn read_json(p: &Path) -> Result<Value> {
-    let meta = std::fs::metadata(p).map_err(|e| Error::io(p, e))?;
-    if meta.len() > 64 << 20 {
-        return Err(Error::format(
-            p,
-            "size",
-            format!("{} bytes of JSON metadata (at most 64 MiB)", meta.len()),
-        ));
-    }
-    let text = std::fs::read_to_string(p).map_err(|e| Error::io(p, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::format(p, "JSON", e.to_string()))
-}
-
-/// The group's attributes: `zarr.json`'s `attributes` (v3) or `.zattrs` (v2).
-fn group_attributes(path: &Path, zarr_format: u8) -> Result<serde_json::Map<String, Value>> {
-    let v = if zarr_format == 3 {
-        read_json(&path.join("zarr.json"))?
-            .get("attributes")
-            .cloned()
-            .unwrap_or(Value::Null)
-    } else if path.join(".zattrs").is_file() {
-        read_json(&path.join(".zattrs"))?
-    } else {
-        Value::Null
-    };
-    Ok(match v {
-        Value::Object(m) => m,
-        _ => serde_json::Map::new(),
-    })
-}
-
-fn parse_axes(path: &Path, v: Option<&Value>) -> Result<Vec<(String, String, Option<String>)>> {
-    let Some(list) = v.and_then(|a| a.as_array()) else {
-        return Ok(Vec::new());
-    };
-    list.iter()
-        .enumerate()
-        .map(|(i, a)| {
-            if let Some(s) = a.as_str() {
-                // OME-Zarr 0.3: axis names only.
-                let kind = match s {
-                    "t" => "time",
-                    "c" => "channel",
-                    _ => "space",
-                };
-                return Ok((s.to_string(), kind.to_string(), None));
-            }
-            let name = a.get("name").and_then(|n| n.as_str()).ok_or_else(|| {
-                Error::format(
-                    path,
-                    format!("multiscales[0].axes[{i}].name"),
-                    "expected a string",
-                )
-            })?;
-            let kind = a
-                .get("type")
-                .and_then(|n| n.as_str())
-                .map(str::to_string)
-                .unwrap_or_else(|| match name {
-                    "x" | "y" | "z" => "space".into(),
-                    "t" => "time".into(),
-                    "c" => "channel".into(),
-                    _ => String::new(),
-                });
-            let unit = a.get("unit").and_then(|n| n.as_str()).map(str::to_string);
-            Ok((name.to_string(), kind, unit))
-        })
-        .collect()
-}
-
-/// Positions of z, y, x among the axes: the last three, in that order.
-fn spatial_axes(path: &Path, axes: &[(String, String, Option<String>)]) -> Result<[usize; 3]> {
-    let n = axes.len();
-    let space: Vec<usize> = (0..n).filter(|&i| axes[i].1 == "space").collect();
-    let names: Vec<&str> = axes.iter().map(|a| a.0.as_str()).collect();
-    if space.len() != 3 || space != [n - 3, n - 2, n - 1] {
-        return Err(Error::unsupported(
-            path,
-            format!(
-                "axes [{}]: a volume needs three space axes, last (OME-Zarr's order)",
-                names.join(", ")
-            ),
-        ));
-    }
-    if names[n - 3..] != ["z", "y", "x"] {
-        return Err(Error::unsupported(
-            path,
-            format!(
-                "space axes [{}]: voxcast reads them in the order z, y, x (x fastest in memory)",
-                names[n - 3..].join(", ")
-            ),
-        ));
-    }
-    Ok([n - 3, n - 2, n - 1])
-}
-
-/// The scale and translation of a `coordinateTransformations` list (empty
-/// where absent).
-fn transforms(path: &Path, field: &str, node: &Value) -> Result<(Vec<f64>, Vec<f64>)> {
-    let mut scale = Vec::new();
-    let mut trans = Vec::new();
-    let Some(list) = node
-        .get("coordinateTransformations")
-        .and_then(|c| c.as_array())
-    else {
-        return Ok((scale, trans));
-    };
-    for (i, t) in list.iter().enumerate() {
-        let nums = |key: &str| -> Result<Vec<f64>> {
-            t.get(key)
-                .and_then(|v| v.as_array())
-                .and_then(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>())
-                .ok_or_else(|| {
-                    Error::format(
-                        path,
-                        format!("{field}[{i}].{key}"),
-                        "expected a list of numbers",
-                    )
-                })
-        };
-        match t.get("type").and_then(|v| v.as_str()) {
-            Some("scale") => scale = nums("scale")?,
-            Some("translation") => trans = nums("translation")?,
-            Some("identity") => {}
-            other => {
-                return Err(Error::unsupported(
-                    path,
-                    format!("{field}[{i}]: transformation type {other:?} (voxcast reads scale and translation)"),
-                ))
-            }
-        }
-    }
-    Ok((scale, trans))
-}
-
-fn compose_scale(s: &[f64], g: &[f64]) -> Vec<f64> {
-    let n = s.len().max(g.len());
-    (0..n)
-        .map(|i| s.get(i).copied().unwrap_or(1.0) * g.get(i).copied().unwrap_or(1.0))
-        .collect()
-}
-
-fn compose_translation(t: &[f64], gs: &[f64], gt: &[f64]) -> Vec<f64> {
-    let n = t.len().max(gt.len());
-    (0..n)
-        .map(|i| {
-            t.get(i).copied().unwrap_or(0.0) * gs.get(i).copied().unwrap_or(1.0)
-                + gt.get(i).copied().unwrap_or(0.0)
-        })
-        .collect()
-}
-
-fn data_type_name(m: &ArrayMetadata) -> String {
-    match m {
-        ArrayMetadata::V3(v) => v.data_type.name().to_string(),
-        ArrayMetadata::V2(v) => serde_json::to_string(&v.dtype).unwrap_or_default(),
-    }
-}
-
-fn codec_names(m: &ArrayMetadata) -> Vec<String> {
-    match m {
-        ArrayMetadata::V3(v) => v.codecs.iter().map(|c| c.name().to_string()).collect(),
-        ArrayMetadata::V2(v) => {
-            let mut out: Vec<String> = v
-                .filters
-                .iter()
-                .flatten()
-                .map(|f| f.id().to_string())
-                .collect();
-            if let Some(c) = &v.compressor {
-                out.push(c.id().to_string());
-            }
-            out
-        }
-    }
-}
-
-/// The sidecar of chunk ranges beside an array, if present and of the
-/// level's chunk grid.
-fn read_ranges(array_dir: &Path, l: &Level) -> Option<Ranges> {
-    let p = array_dir.join(RANGES_FILE);
-    let meta = std::fs::metadata(&p).ok()?;
-    let counts = l.chunk_counts();
-    let n = counts.iter().product::<u64>();
-    let want = 8 + 24 + n * 8;
-    if meta.len() != want {
-        eprintln!(
-            "warning: {}: {} bytes where the level's {}×{}×{} chunks need {want}; ignored (chunks will be read to learn their values)",
-            p.display(),
-            meta.len(),
-            counts[0],
-            counts[1],
-            counts[2]
-        );
-        return None;
-    }
-    let bytes = std::fs::read(&p).ok()?;
-    if &bytes[..8] != RANGES_MAGIC {
-        return None;
-    }
-    let u = |i: usize| u64::from_le_bytes(bytes[8 + 8 * i..16 + 8 * i].try_into().unwrap());
-    if [u(0), u(1), u(2)] != counts {
-        return None;
-    }
-    let minmax = bytes[32..]
-        .chunks_exact(8)
-        .map(|c| {
-            [
-                f32::from_le_bytes(c[..4].try_into().unwrap()),
-                f32::from_le_bytes(c[4..].try_into().unwrap()),
-            ]
-        })
-        .collect();
-    Some(Ranges { counts, minmax })
-}
-
-/// The sidecar's bytes for chunk ranges (x fastest).
-pub(crate) fn ranges_bytes(counts: [u64; 3], minmax: &[[f32; 2]]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(32 + minmax.len() * 8);
-    out.extend_from_slice(RANGES_MAGIC);
-    for c in counts {
-        out.extend_from_slice(&c.to_le_bytes());
-    }
-    for m in minmax {
-        out.extend_from_slice(&m[0].to_le_bytes());
-        out.extend_from_slice(&m[1].to_le_bytes());
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests;
-
-impl ZarrStore {
-    /// Lines for `voxcast info`: the format, axes, type, and each level's
-    /// path, dims, voxel size, chunks, codecs and decoded size.
-    pub fn summary(&self) -> Vec<String> {
-        let i = &self.info;
-        let mut out = vec![format!(
-            "Zarr v{}{}, {} levels, {} (fill {})",
-            i.zarr_format,
-            i.ome_version
-                .as_ref()
-                .map(|v| format!(", OME-Zarr {v}"))
-                .unwrap_or_else(|| ", no OME-Zarr metadata".into()),
-            self.levels.len(),
-            i.stored.name(),
-            i.fill
-        )];
-        let axes: Vec<String> = i
-            .axes
-            .iter()
-            .map(|(n, k, u)| {
-                let mut s = format!("{n} ({k}");
-                if let Some(u) = u {
-                    s += &format!(", {u}");
-                }
-                s + ")"
-            })
-            .collect();
-        out.push(format!("axes {}", axes.join(", ")));
-        if !i.lead_index.is_empty() {
-            let lead: Vec<String> = i
-                .axes
-                .iter()
-                .zip(&i.lead_index)
-                .map(|((n, _, _), k)| format!("{n} = {k}"))
-                .collect();
-            out.push(format!(
-                "reading {} (--time picks t, --var the channel{})",
-                lead.join(", "),
-                if i.channels.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {}", i.channels.join(", "))
-                }
-            ));
-        }
-        let ty = self.scalar_type();
-        for (l, (lv, li)) in self.levels.iter().zip(&i.levels).enumerate() {
-            // Sharded: the chunks above are the shards' inner chunks.
-            let shard = match li.subchunk_shape {
-                Some(_) => format!(
-                    " in shard files of {} (array order)",
-                    li.chunk_shape
-                        .iter()
-                        .map(|c| c.to_string())
-                        .collect::<Vec<_>>()
-                        .join("×")
-                ),
-                None => String::new(),
-            };
-            out.push(format!(
-                "level {l} [{}]: {}×{}×{}, voxel {} × {} × {}, chunks {}×{}×{}{shard}, {}, {} decoded{}",
-                if li.path.is_empty() { "/" } else { &li.path },
-                lv.dims[0],
-                lv.dims[1],
-                lv.dims[2],
-                lv.spacing.x,
-                lv.spacing.y,
-                lv.spacing.z,
-                lv.chunk[0],
-                lv.chunk[1],
-                lv.chunk[2],
-                if li.codecs.is_empty() {
-                    "uncompressed".to_string()
-                } else {
-                    li.codecs.join(" + ")
-                },
-                crate::render::outofcore::human_bytes(lv.bytes(ty)),
-                if li.has_ranges { ", chunk ranges" } else { "" }
-            ));
-        }
-        out
-    }
-}

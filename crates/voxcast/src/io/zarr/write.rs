@@ -9,7 +9,7 @@
 //! rule: it reads back as the fill value). Each level's per-chunk value
 //! ranges go to the sidecar [`super::RANGES_FILE`].
 
-use super::{ranges_bytes, RANGES_FILE};
+use super::ranges::{ranges_bytes, RANGES_FILE};
 use crate::error::{Error, Result};
 use crate::volume::chunked::{downsample2_data, half_dims};
 use crate::volume::{ScalarType, Volume, VoxelData};

@@ -1,7 +1,7 @@
 use super::*;
 use crate::camera::Projection;
 use crate::metrics::psnr;
-use crate::volume::{MemorySource, Volume};
+use crate::volume::{MemorySource, Volume, VoxelData};
 
 fn params(size: u32, shading: bool) -> RenderParams {
     RenderParams {

@@ -1,0 +1,78 @@
+//! The sidecar `voxcast convert` writes beside each level: every chunk's
+//! value range, so the renderer skips transparent chunks unread.
+
+use crate::volume::Level;
+use std::path::Path;
+
+/// The file beside each level's array metadata that holds its chunks'
+/// value ranges (stores written by `voxcast convert`).
+pub const RANGES_FILE: &str = "voxcast-chunk-ranges.bin";
+/// The sidecar's first 8 bytes.
+const RANGES_MAGIC: &[u8; 8] = b"VXCRNG01";
+
+/// Chunk value ranges from the sidecar: per chunk (x fastest) min and max.
+pub(super) struct Ranges {
+    pub counts: [u64; 3],
+    pub minmax: Vec<[f32; 2]>,
+}
+
+/// The sidecar of chunk ranges beside an array, if present and of the
+/// level's chunk grid.
+pub(super) fn read_ranges(array_dir: &Path, l: &Level) -> Option<Ranges> {
+    let p = array_dir.join(RANGES_FILE);
+    let meta = std::fs::metadata(&p).ok()?;
+    let counts = l.chunk_counts();
+    let n = counts.iter().product::<u64>();
+    let want = 8 + 24 + n * 8;
+    if meta.len() != want {
+        eprintln!(
+            "warning: {}: {} bytes where the level's {}×{}×{} chunks need {want}; ignored (chunks will be read to learn their values)",
+            p.display(),
+            meta.len(),
+            counts[0],
+            counts[1],
+            counts[2]
+        );
+        return None;
+    }
+    let bytes = std::fs::read(&p).ok()?;
+    if &bytes[..8] != RANGES_MAGIC {
+        return None;
+    }
+    let u = |i: usize| u64::from_le_bytes(bytes[8 + 8 * i..16 + 8 * i].try_into().unwrap());
+    if [u(0), u(1), u(2)] != counts {
+        return None;
+    }
+    let minmax = bytes[32..]
+        .chunks_exact(8)
+        .map(|c| {
+            [
+                f32::from_le_bytes(c[..4].try_into().unwrap()),
+                f32::from_le_bytes(c[4..].try_into().unwrap()),
+            ]
+        })
+        .collect();
+    Some(Ranges { counts, minmax })
+}
+
+/// The sidecar's bytes for chunk ranges (x fastest).
+pub(crate) fn ranges_bytes(counts: [u64; 3], minmax: &[[f32; 2]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(32 + minmax.len() * 8);
+    out.extend_from_slice(RANGES_MAGIC);
+    for c in counts {
+        out.extend_from_slice(&c.to_le_bytes());
+    }
+    for m in minmax {
+        out.extend_from_slice(&m[0].to_le_bytes());
+        out.extend_from_slice(&m[1].to_le_bytes());
+    }
+    out
+}
+
+impl Ranges {
+    /// Chunk `c`'s min and max.
+    pub fn get(&self, c: [u64; 3]) -> Option<[f32; 2]> {
+        let i = c[0] + self.counts[0] * (c[1] + self.counts[1] * c[2]);
+        self.minmax.get(i as usize).copied()
+    }
+}

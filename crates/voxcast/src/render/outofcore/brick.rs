@@ -1,0 +1,370 @@
+//! One brick of the out-of-core render: its data box copied out of the
+//! cached chunks ([`BrickBuf`]), the box around its visible cells, and the
+//! march of every pixel whose ray crosses it — eight pixels per SIMD packet
+//! where the CPU allows, else the scalar loop ([`super::march`]).
+
+use super::cache::ChunkCache;
+use super::march::{self, BrickFrame, Px, RowCount};
+use super::Geo;
+use crate::error::{Error, Result};
+use crate::render::composite::Weights;
+use crate::render::packet;
+use crate::render::ray::Frame;
+use crate::render::shading::BlinnPhong;
+use crate::transfer::Lut;
+use crate::volume::{ChunkRange, Grid, ScalarType, Voxel, VoxelData};
+use glam::{Vec3, Vec4};
+use rayon::prelude::*;
+
+/// A brick's frame before the grid is typed.
+pub(super) struct FrameArgs<'a> {
+    pub(super) data_lo: Vec3,
+    pub(super) own_lo: Vec3,
+    pub(super) own_hi: Vec3,
+    pub(super) lut: &'a Lut,
+    pub(super) q: &'a [[f32; 4]; crate::transfer::LUT_SIZE],
+    pub(super) st: f32,
+    pub(super) unit: f32,
+    pub(super) inv_spacing: Vec3,
+    pub(super) emission: f32,
+    pub(super) absorption: f32,
+    pub(super) stop: f32,
+    pub(super) shading: Option<BlinnPhong>,
+    pub(super) window: [f32; 2],
+    /// The SIMD packets' instruction set, `None` for the scalar loop.
+    pub(super) packets: Option<crate::render::packet::Level>,
+}
+
+/// The brick being marched: its data box copied out of the cached chunks,
+/// in the store's type (one buffer reused brick after brick).
+pub(super) enum BrickBuf {
+    U8(Vec<u8>),
+    U16(Vec<u16>),
+    I16(Vec<i16>),
+    F32(Vec<f32>),
+}
+
+/// The voxel types a brick holds, with their [`VoxelData`] variant.
+trait Stored: Voxel + Default {
+    fn of(d: &VoxelData) -> &[Self];
+    fn from_f32(v: f32) -> Self;
+    /// The packets' z-paired copy of a u8 brick (empty for other types).
+    fn z_pairs(data: &[Self], dims: [usize; 3]) -> Vec<u16>;
+}
+
+macro_rules! stored {
+    ($t:ty, $var:ident, $zp:expr) => {
+        impl Stored for $t {
+            fn of(d: &VoxelData) -> &[$t] {
+                match d {
+                    VoxelData::$var(v) => v,
+                    _ => &[],
+                }
+            }
+            fn from_f32(v: f32) -> $t {
+                v as $t
+            }
+            fn z_pairs(data: &[$t], dims: [usize; 3]) -> Vec<u16> {
+                $zp(data, dims)
+            }
+        }
+    };
+}
+stored!(u8, U8, crate::render::packet::z_pairs);
+stored!(u16, U16, |_, _| Vec::new());
+stored!(i16, I16, |_, _| Vec::new());
+stored!(f32, F32, |_, _| Vec::new());
+
+impl BrickBuf {
+    pub(super) fn new(ty: ScalarType) -> BrickBuf {
+        match ty {
+            ScalarType::U8 => BrickBuf::U8(Vec::new()),
+            ScalarType::U16 => BrickBuf::U16(Vec::new()),
+            ScalarType::I16 => BrickBuf::I16(Vec::new()),
+            ScalarType::F32 => BrickBuf::F32(Vec::new()),
+        }
+    }
+
+    /// Copies the data box out of its chunks; returns the value range of
+    /// those chunks (`None`: nothing finite).
+    pub(super) fn assemble(
+        &mut self,
+        geo: &Geo<'_>,
+        dbox: ([u64; 3], [u64; 3]),
+        chunks: &[[u64; 3]],
+        ranges: &[ChunkRange],
+        cidx: impl Fn([u64; 3]) -> usize,
+        cache: &ChunkCache<'_>,
+    ) -> Result<Option<(f32, f32)>> {
+        match self {
+            BrickBuf::U8(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::U16(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::I16(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::F32(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+        }
+    }
+
+    /// The box (voxel coordinates of the buffer) around the cells whose
+    /// values may show; `None` when none may.
+    pub(super) fn visible_box(
+        &self,
+        dims: [usize; 3],
+        visible: &impl Fn(f32, f32) -> bool,
+    ) -> Option<(Vec3, Vec3)> {
+        match self {
+            BrickBuf::U8(v) => visible_cells(v, dims, visible),
+            BrickBuf::U16(v) => visible_cells(v, dims, visible),
+            BrickBuf::I16(v) => visible_cells(v, dims, visible),
+            BrickBuf::F32(v) => visible_cells(v, dims, visible),
+        }
+    }
+
+    pub(super) fn march(
+        &self,
+        a: &FrameArgs<'_>,
+        dims: [usize; 3],
+        px: &mut [Px],
+        w: u32,
+        rect: [u32; 4],
+    ) -> RowCount {
+        match self {
+            BrickBuf::U8(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::U16(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::I16(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::F32(v) => march_rows(v, a, dims, px, w, rect),
+        }
+    }
+}
+
+fn fill_box<T: Stored>(
+    out: &mut Vec<T>,
+    geo: &Geo<'_>,
+    (lo, hi): ([u64; 3], [u64; 3]),
+    chunks: &[[u64; 3]],
+    ranges: &[ChunkRange],
+    cidx: &impl Fn([u64; 3]) -> usize,
+    cache: &ChunkCache<'_>,
+) -> Result<Option<(f32, f32)>> {
+    let d: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as usize);
+    out.clear();
+    out.resize(d[0] * d[1] * d[2], T::default());
+    let mut range: Option<(f32, f32)> = None;
+    let mut widen = |r: (f32, f32)| {
+        range = Some(match range {
+            Some((a, b)) => (a.min(r.0), b.max(r.1)),
+            None => r,
+        })
+    };
+    for &k in chunks {
+        let (clo, chi) = geo.level.chunk_box(k);
+        // The part of the chunk inside the data box.
+        let a: [u64; 3] = std::array::from_fn(|i| clo[i].max(lo[i]));
+        let b: [u64; 3] = std::array::from_fn(|i| chi[i].min(hi[i]));
+        if (0..3).any(|i| a[i] >= b[i]) {
+            continue;
+        }
+        let cd: [usize; 3] = std::array::from_fn(|i| (chi[i] - clo[i]) as usize);
+        if let ChunkRange::Fill(v) = ranges[cidx(k)] {
+            if v.is_finite() {
+                widen((v, v));
+            }
+            let fill = T::from_f32(v);
+            for z in a[2]..b[2] {
+                for y in a[1]..b[1] {
+                    let o = ((z - lo[2]) as usize * d[1] + (y - lo[1]) as usize) * d[0];
+                    out[o + (a[0] - lo[0]) as usize..o + (b[0] - lo[0]) as usize].fill(fill);
+                }
+            }
+            continue;
+        }
+        let chunk = cache.get((geo.lidx, k))?;
+        let src = T::of(&chunk.data);
+        if src.len() != cd[0] * cd[1] * cd[2] {
+            return Err(Error::invalid(format!(
+                "level {} chunk {:?}: the store returned {} voxels of another type or shape (expected {}×{}×{})",
+                geo.lidx, k, chunk.data.len(), cd[0], cd[1], cd[2]
+            )));
+        }
+        if let Some(r) = chunk.range {
+            widen(r);
+        }
+        for z in a[2]..b[2] {
+            for y in a[1]..b[1] {
+                let o = ((z - lo[2]) as usize * d[1] + (y - lo[1]) as usize) * d[0];
+                let s = ((z - clo[2]) as usize * cd[1] + (y - clo[1]) as usize) * cd[0];
+                let n = (b[0] - a[0]) as usize;
+                out[o + (a[0] - lo[0]) as usize..][..n]
+                    .copy_from_slice(&src[s + (a[0] - clo[0]) as usize..][..n]);
+            }
+        }
+    }
+    Ok(range)
+}
+
+/// Edge of the cells [`visible_cells`] tests, in voxels.
+const CELL: usize = 4;
+
+/// The box around the visible cells of `data`: each cell of [`CELL`]³
+/// voxels is tested by the range of the voxels a sample inside it
+/// interpolates (its own and the next layer on each axis).
+fn visible_cells<T: Voxel>(
+    data: &[T],
+    d: [usize; 3],
+    visible: &impl Fn(f32, f32) -> bool,
+) -> Option<(Vec3, Vec3)> {
+    let n: [usize; 3] = d.map(|v| v.div_ceil(CELL));
+    let mut lo = [usize::MAX; 3];
+    let mut hi = [0usize; 3];
+    for cz in 0..n[2] {
+        for cy in 0..n[1] {
+            for cx in 0..n[0] {
+                let c = [cx, cy, cz];
+                // Inside the box already: nothing to learn.
+                if lo[0] != usize::MAX && (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a]) {
+                    continue;
+                }
+                let a: [usize; 3] = std::array::from_fn(|i| c[i] * CELL);
+                let b: [usize; 3] = std::array::from_fn(|i| (a[i] + CELL + 1).min(d[i]));
+                let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+                for z in a[2]..b[2] {
+                    for y in a[1]..b[1] {
+                        let r = (z * d[1] + y) * d[0];
+                        for v in &data[r + a[0]..r + b[0]] {
+                            let v = v.to_f32();
+                            mn = mn.min(v);
+                            mx = mx.max(v);
+                        }
+                    }
+                }
+                if mn <= mx && visible(mn, mx) {
+                    for i in 0..3 {
+                        lo[i] = lo[i].min(c[i]);
+                        hi[i] = hi[i].max(c[i]);
+                    }
+                }
+            }
+        }
+    }
+    if lo[0] == usize::MAX {
+        return None;
+    }
+    let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
+    let h = Vec3::from(std::array::from_fn::<f32, 3, _>(|i| {
+        ((hi[i] + 1) * CELL) as f32
+    }));
+    Some((l, h))
+}
+
+fn march_rows<T: Stored>(
+    data: &[T],
+    a: &FrameArgs<'_>,
+    dims: [usize; 3],
+    px: &mut [Px],
+    w: u32,
+    [x0, x1, y0, y1]: [u32; 4],
+) -> RowCount {
+    let f = BrickFrame {
+        grid: Grid::new(data, dims, a.window[0], a.window[1]),
+        data_lo: a.data_lo,
+        own_lo: a.own_lo,
+        own_hi: a.own_hi,
+        lut: a.lut,
+        q: a.q,
+        st: a.st,
+        unit: a.unit,
+        inv_spacing: a.inv_spacing,
+        emission: a.emission,
+        absorption: a.absorption,
+        stop: a.stop,
+        shading: a.shading,
+    };
+    let w = w as usize;
+    let rows = px[y0 as usize * w..y1 as usize * w].par_chunks_mut(w);
+    let sum = |a: RowCount, b: RowCount| RowCount {
+        samples: a.samples + b.samples,
+        shaded: a.shaded + b.shaded,
+        terminated: a.terminated + b.terminated,
+    };
+    let Some(level) = a.packets.filter(|_| packet::fits(&f.grid)) else {
+        return rows
+            .map(|row| {
+                let mut n = RowCount::default();
+                for p in &mut row[x0 as usize..x1 as usize] {
+                    march::march(&f, p, &mut n);
+                }
+                n
+            })
+            .reduce(RowCount::default, sum);
+    };
+    // Eight pixels per packet: the vector loop marches each ray's samples
+    // inside the brick but its last one, from the colour it holds; the
+    // scalar loop then takes what is left (the ray's last sample, where it
+    // falls in this brick).
+    let z_pairs = T::z_pairs(data, dims);
+    let frame = Frame {
+        grid: &f.grid,
+        lut: a.lut,
+        box_lo: Vec3::ZERO,
+        box_hi: Vec3::from(dims.map(|d| (d - 1) as f32)),
+        origin_w: Vec3::ZERO,
+        inv_spacing: a.inv_spacing,
+        step: a.st,
+        unit: a.unit,
+        skip_empty: false,
+        block_size: 1,
+        block_counts: [1; 3],
+        empty: &[],
+        occupied: None,
+        seed: 0,
+    };
+    let pk = packet::Packets {
+        f: &frame,
+        q: a.q,
+        st: a.st,
+        weights: Weights {
+            emission: a.emission,
+            absorption: a.absorption,
+        },
+        stop: a.stop,
+        jitter: None,
+        empty: None,
+        shading: a.shading,
+        z_pairs: &z_pairs,
+        level,
+        imp: None,
+    };
+    rows.map(|row| {
+        let mut n = RowCount::default();
+        for group in row[x0 as usize..x1 as usize].chunks_mut(packet::LANES) {
+            let mut lanes = [None; packet::LANES];
+            let mut acc = [Vec4::ZERO; packet::LANES];
+            for (i, p) in group.iter().enumerate() {
+                lanes[i] = march::lane(&f, p);
+                acc[i] = p.finish();
+            }
+            if lanes.iter().any(Option::is_some) {
+                let mut count = [[0u32; 2]; packet::LANES];
+                let mut alive = [false; packet::LANES];
+                pk.march_lanes(&lanes, &mut acc, &mut count, &mut alive);
+                for (i, p) in group.iter_mut().enumerate() {
+                    let Some(l) = lanes[i] else { continue };
+                    p.c = acc[i].truncate();
+                    p.a = acc[i].w;
+                    p.next = l.k_end;
+                    n.samples += count[i][0] as u64;
+                    n.shaded += count[i][1] as u64;
+                    if !alive[i] {
+                        p.live = false;
+                        p.terminated = true;
+                        n.terminated += 1;
+                    }
+                }
+            }
+            for p in group.iter_mut() {
+                march::march(&f, p, &mut n);
+            }
+        }
+        n
+    })
+    .reduce(RowCount::default, sum)
+}
