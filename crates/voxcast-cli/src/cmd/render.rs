@@ -23,17 +23,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(super::render_chunked::Plan::InCore(level)) => scene.input.options.level = Some(level),
         None => {}
     }
-    let out = a
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("render.png"));
     // Every output is checked before any work, and written only when all
     // of them can be.
-    let mut outputs = Outputs::new([&scene.input.path]);
-    outputs.plan("-o", &out, &["png", "exr"])?;
-    outputs.plan_optional("--float-out", a.float_out.as_deref(), &["exr"])?;
-    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
-    outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
+    let (mut outputs, out) = plan_outputs(&a, &scene)?;
     let quiet = a.quiet;
     let prepared = prepare(&scene, &mut outputs, quiet)?;
     if let Some(target) = a.quality {
@@ -137,6 +129,21 @@ pub fn prepare(
         eprintln!("{}", loaded(scene, &prepared, t_load));
     }
     Ok(prepared)
+}
+
+/// The outputs `a` asks for, planned (checked against the input): the
+/// image (`-o`, default `render.png`) and the optional ones.
+pub(super) fn plan_outputs(a: &RenderArgs, scene: &Scene) -> Result<(Outputs, PathBuf)> {
+    let out = a
+        .output
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("render.png"));
+    let mut outputs = Outputs::new([&scene.input.path]);
+    outputs.plan("-o", &out, &["png", "exr"])?;
+    outputs.plan_optional("--float-out", a.float_out.as_deref(), &["exr"])?;
+    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
+    outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
+    Ok((outputs, out))
 }
 
 /// Writes the image to `out` and the optional outputs `a` asks for:

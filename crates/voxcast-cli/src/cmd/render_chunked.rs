@@ -6,11 +6,10 @@ use crate::args::RenderArgs;
 use anyhow::{bail, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 use voxcast::camera::Camera;
-use voxcast::files::Outputs;
 use voxcast::io::zarr::ZarrStore;
 use voxcast::render::outofcore::{self, human_bytes, OutOfCoreParams};
 use voxcast::scene::Scene;
@@ -98,15 +97,7 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
     if !matches!(a.device, crate::args::DeviceArg::Cpu) {
         bail!("--device: out of core, voxcast renders on the CPU; leave --device at cpu, or give a --memory-budget the level fits in");
     }
-    let out = a
-        .output
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("render.png"));
-    let mut outputs = Outputs::new([&scene.input.path]);
-    outputs.plan("-o", &out, &["png", "exr"])?;
-    outputs.plan_optional("--float-out", a.float_out.as_deref(), &["exr"])?;
-    outputs.plan_optional("--stats-json", a.stats_json.as_deref(), &[])?;
-    outputs.plan_optional("--save-scene", a.save_scene.as_deref(), &["toml"])?;
+    let (mut outputs, out) = super::render::plan_outputs(a, scene)?;
     let quiet = a.quiet;
     // The finest level of at most 64 MiB stands in for the volume where
     // the transfer function and the window need its values (auto,
