@@ -122,6 +122,14 @@ pub struct Measured {
     pub ms_max: f64,
     /// Every timed render, in order.
     pub ms_per_repeat: Vec<f64>,
+    /// Median milliseconds the GPU spent in the compute passes (timestamp
+    /// queries; upload and read-back excluded); absent on the CPU or
+    /// without timestamps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub device_ms_median: Option<f64>,
+    /// The device's milliseconds per timed render, in order.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub device_ms_per_repeat: Vec<f64>,
     /// Median time of `uniform` over this method's.
     pub speedup_vs_uniform: f64,
     /// This method's samples over `uniform`'s.

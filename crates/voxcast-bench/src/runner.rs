@@ -27,6 +27,8 @@ struct Slot {
     /// The setting `--quality` chose.
     quality: Option<QualityChoice>,
     times: Vec<f64>,
+    /// The device's own milliseconds per timed render (GPU timestamps).
+    device_times: Vec<f64>,
     stats: Option<RenderStats>,
     /// PSNR and SSIM of the first image against the reference (each image
     /// is compared as soon as it exists, so none is kept).
@@ -127,6 +129,7 @@ pub fn run_cancellable(
             params,
             quality: None,
             times: Vec::new(),
+            device_times: Vec::new(),
             stats: None,
             error_metrics: None,
             error: None,
@@ -272,6 +275,9 @@ pub fn run_cancellable(
                 Ok((img, stats, ms)) => {
                     if round.is_some() {
                         slot.times.push(ms);
+                        if let Some(d) = stats.device_seconds {
+                            slot.device_times.push(d * 1e3);
+                        }
                     }
                     if slot.error_metrics.is_none() {
                         let psnr = metrics::psnr(&img, &ref_image)?;
@@ -315,6 +321,10 @@ pub fn run_cancellable(
                     ms_min: slot.times.iter().copied().fold(f64::INFINITY, f64::min),
                     ms_max: slot.times.iter().copied().fold(0.0, f64::max),
                     ms_per_repeat: slot.times.clone(),
+                    device_ms_median: (!slot.device_times.is_empty()
+                        && slot.device_times.len() == slot.times.len())
+                    .then(|| median(&slot.device_times)),
+                    device_ms_per_repeat: slot.device_times.clone(),
                     speedup_vs_uniform: base_ms / ms_median,
                     samples_vs_uniform: ratio(st.samples, base_stats.samples),
                     interpolations_vs_uniform: ratio(st.interpolations, base_stats.interpolations),

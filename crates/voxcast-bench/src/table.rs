@@ -58,10 +58,14 @@ fn rows(report: &BenchReport) -> Vec<[String; 7]> {
                 grouped_int(x.samples),
                 grouped_int(x.interpolations),
                 format!(
-                    "{} [{}–{}]",
+                    "{} [{}–{}]{}",
                     fmt_ms(x.ms_median),
                     fmt_ms(x.ms_min),
-                    fmt_ms(x.ms_max)
+                    fmt_ms(x.ms_max),
+                    match x.device_ms_median {
+                        Some(d) => format!(" (GPU {})", fmt_ms(d)),
+                        None => String::new(),
+                    }
                 ),
                 format!("{:.2}×", x.speedup_vs_uniform),
                 fmt_psnr(x),
@@ -95,7 +99,7 @@ fn preamble(r: &BenchReport) -> Vec<String> {
     }
     machine.push_str(&format!(", SIMD {}", r.machine.simd));
     let reference = &r.reference;
-    vec![
+    let mut lines = vec![
         format!(
             "Scene: {} ({}×{}×{} {}), {}×{} image, tf {} (window {} … {}), step {} voxel, ERT {}, shading {}, empty-space skipping {}.",
             s.input,
@@ -129,7 +133,28 @@ fn preamble(r: &BenchReport) -> Vec<String> {
                 CacheStatus::Off => "off",
             }
         ),
-    ]
+    ];
+    let on_device: Vec<String> = r
+        .methods
+        .iter()
+        .filter_map(|m| {
+            let x = m.measured.as_ref()?;
+            let d = x.device_ms_median?;
+            let per_s = x.samples as f64 / d * 1e3;
+            Some(if per_s >= 1e9 {
+                format!("{} {:.1} G samples/s", m.name, per_s * 1e-9)
+            } else {
+                format!("{} {:.1} M samples/s", m.name, per_s * 1e-6)
+            })
+        })
+        .collect();
+    if !on_device.is_empty() {
+        lines.push(format!(
+            "(GPU ms): the compute passes alone, by timestamp queries; the wall time adds writing the parameters, reading the image back and averaging it on the CPU. On the device: {}.",
+            on_device.join(", ")
+        ));
+    }
+    lines
 }
 
 /// The report as a Markdown table (for the README), with the scene, the

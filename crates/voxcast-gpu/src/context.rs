@@ -198,7 +198,9 @@ impl GpuContext {
         };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("voxcast"),
-            required_features: wgpu::Features::empty(),
+            // Timestamps time the compute passes apart from upload and
+            // read-back (`RenderStats::device_seconds`), where offered.
+            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
             required_limits: limits,
             ..Default::default()
         }))
@@ -224,6 +226,13 @@ impl GpuContext {
     /// The adapter's limits.
     pub fn limits(&self) -> wgpu::Limits {
         self.adapter.limits()
+    }
+
+    /// Whether renders are timed on the device by timestamp queries.
+    pub fn has_timestamps(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::TIMESTAMP_QUERY)
     }
 }
 
@@ -254,6 +263,17 @@ pub(crate) fn scoped<T>(
 
 /// Maps `buf`, copies its bytes out and unmaps it.
 pub(crate) fn read_back(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    map_read(device, buf, |b| b.to_vec())
+}
+
+/// Waits for `buf`, maps it, hands its bytes to `f` and unmaps it: `f` reads
+/// the mapped memory in place (an image is converted there, not copied
+/// first).
+pub(crate) fn map_read<T>(
+    device: &wgpu::Device,
+    buf: &wgpu::Buffer,
+    f: impl FnOnce(&[u8]) -> T,
+) -> Result<T, GpuError> {
     let (tx, rx) = std::sync::mpsc::channel();
     buf.map_async(wgpu::MapMode::Read, .., move |r| {
         let _ = tx.send(r);
@@ -264,10 +284,9 @@ pub(crate) fn read_back(device: &wgpu::Device, buf: &wgpu::Buffer) -> Result<Vec
     rx.recv()
         .map_err(|_| GpuError::Device("the read-back was dropped".into()))?
         .map_err(|e| GpuError::Device(format!("reading the image back: {e}")))?;
-    let bytes = buf
+    let out = f(&buf
         .get_mapped_range(..)
-        .map_err(|e| GpuError::Device(format!("reading the image back: {e}")))?
-        .to_vec();
+        .map_err(|e| GpuError::Device(format!("reading the image back: {e}")))?);
     buf.unmap();
-    Ok(bytes)
+    Ok(out)
 }

@@ -9,10 +9,11 @@ use voxcast::transfer::{srgb_to_linear, Lut, TransferFunction, LUT_SIZE};
 use voxcast::Image;
 use wgpu::util::DeviceExt;
 
-use crate::context::{read_back, GpuError};
+use crate::context::{map_read, read_back, GpuError};
 use crate::params::{optical_code, Params, GROUPED, JITTER, SHADING, SKIP};
-use crate::renderer::{method_code, GpuRenderer, PASSES_PER_DISPATCH};
+use crate::renderer::{method_code, GpuRenderer, Spec, PASSES_PER_DISPATCH};
 use crate::scene::SceneData;
+use rayon::prelude::*;
 
 impl GpuRenderer {
     pub(crate) fn render_inner(
@@ -220,7 +221,8 @@ impl GpuRenderer {
             usage: wgpu::BufferUsages::STORAGE,
         });
 
-        let (gx, gy) = (w.div_ceil(8), h.div_ceil(8));
+        let [wg_x, wg_y] = self.shader.workgroup;
+        let (gx, gy) = (w.div_ceil(wg_x), h.div_ceil(wg_y));
         let stats_bytes = gx as u64 * gy as u64 * 6 * 4;
         if st.out.as_ref().map(|o| o.0) != Some(pixels) {
             let buf = |label: &str, size: u64, usage: wgpu::BufferUsages| {
@@ -241,6 +243,22 @@ impl GpuRenderer {
                 buf("stats read", stats_bytes, read),
             ));
         }
+        // The pipeline: specialised for this render's method, flags and
+        // optical model (built once per combination), or the generic one.
+        let pipeline = if self.specialise {
+            let spec = Spec {
+                method: p.method,
+                flags: p.flags,
+                optical: p.optical,
+                shapes: p.shapes > 0,
+            };
+            st.pipelines
+                .entry(spec)
+                .or_insert_with(|| self.shader.pipeline(device, Some(spec)))
+                .clone()
+        } else {
+            self.pipeline.clone()
+        };
         let blocks = &st.blocks[&(params.block_size as usize)];
         let (_, out_px, out_stats, read_px, read_stats) = st.out.as_ref().expect("made above");
         let tex = |binding: u32, slot: usize| wgpu::BindGroupEntry {
@@ -294,50 +312,69 @@ impl GpuRenderer {
                 tex(13, 5),
                 tex(14, 6),
                 tex(15, 7),
+                wgpu::BindGroupEntry {
+                    binding: 16,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
             ],
         });
         // One submit per chunk of passes (queue order keeps each chunk's
         // parameters with its dispatch); the last one copies the sums out.
+        let chunks = passes.div_ceil(PASSES_PER_DISPATCH);
+        let timer = Timestamps::new(self, chunks);
         let mut first = 0;
+        let mut chunk = 0;
         while first < passes {
             let end = (first + PASSES_PER_DISPATCH).min(passes);
             (p.first_pass, p.end_pass) = (first, end);
             queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&p));
             let mut enc = device.create_command_encoder(&Default::default());
             {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(&self.pipeline);
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("ray cast"),
+                    timestamp_writes: timer.as_ref().map(|t| t.writes(chunk)),
+                });
+                pass.set_pipeline(&pipeline);
                 pass.set_bind_group(0, &bind, &[]);
                 pass.dispatch_workgroups(gx, gy, 1);
             }
             if end == passes {
                 enc.copy_buffer_to_buffer(out_px, 0, read_px, 0, out_bytes);
                 enc.copy_buffer_to_buffer(out_stats, 0, read_stats, 0, stats_bytes);
+                if let Some(t) = &timer {
+                    t.resolve(&mut enc);
+                }
             }
             queue.submit([enc.finish()]);
             first = end;
+            chunk += 1;
         }
-        let px = read_back(device, read_px)?;
-        let sv = read_back(device, read_stats)?;
         // The sums over the passes → the average, over the background (the
-        // CPU's arithmetic: linear radiance, opaque, for single-scatter).
-        let sums: &[[f32; 4]] = bytemuck::cast_slice(&px);
+        // CPU's arithmetic: linear radiance, opaque, for single-scatter),
+        // converted in parallel straight from the mapped buffer: at 1024²
+        // a copy first, then a serial pass, cost more than the render on a
+        // fast GPU.
         let n = passes as f32;
         let bg_v = glam::Vec3::from(bg);
-        let pixels_f = sums
-            .iter()
-            .map(|&s| {
-                let s = glam::Vec4::from(s);
-                if physical {
-                    let c = s.truncate() / n;
-                    [c.x, c.y, c.z, 1.0]
-                } else {
-                    let c = s / n;
-                    let rgb = c.truncate() + bg_v * (1.0 - c.w);
-                    [rgb.x, rgb.y, rgb.z, c.w]
-                }
-            })
-            .collect();
+        let convert = |b: &[u8]| -> [f32; 4] {
+            let s = glam::Vec4::from(bytemuck::pod_read_unaligned::<[f32; 4]>(b));
+            if physical {
+                let c = s.truncate() / n;
+                [c.x, c.y, c.z, 1.0]
+            } else {
+                let c = s / n;
+                let rgb = c.truncate() + bg_v * (1.0 - c.w);
+                [rgb.x, rgb.y, rgb.z, c.w]
+            }
+        };
+        let pixels_f: Vec<[f32; 4]> = map_read(device, read_px, |bytes| {
+            bytes.par_chunks_exact(16).map(convert).collect()
+        })?;
+        let sv = read_back(device, read_stats)?;
+        let device_seconds = match &timer {
+            Some(t) => t.seconds(self)?,
+            None => None,
+        };
         let image = Image {
             width: w,
             height: h,
@@ -359,7 +396,86 @@ impl GpuRenderer {
             early_terminated: sum[5],
             capped_paths: 0,
             seconds: start.elapsed().as_secs_f64(),
+            device_seconds,
         };
         Ok((image, stats))
+    }
+}
+
+/// Timestamp queries around each compute pass of a render: a begin and an
+/// end per chunk of passes, resolved after the last and summed, so the
+/// device's own time leaves out the uploads, the read-back and the gaps
+/// between submits.
+struct Timestamps {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    read: wgpu::Buffer,
+    count: u32,
+}
+
+impl Timestamps {
+    /// `None` where the device has no timestamp queries, or for more
+    /// chunks than a query set holds (`wgpu::QUERY_SET_MAX_QUERIES`).
+    fn new(r: &GpuRenderer, chunks: u32) -> Option<Timestamps> {
+        let count = chunks.checked_mul(2)?;
+        if !r.ctx.has_timestamps() || count > wgpu::QUERY_SET_MAX_QUERIES {
+            return None;
+        }
+        let device = &r.ctx.device;
+        let bytes = count as u64 * 8;
+        let buf = |label, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        Some(Timestamps {
+            set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("pass timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            }),
+            resolve: buf(
+                "timestamps",
+                wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            ),
+            read: buf(
+                "timestamps read",
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            ),
+            count,
+        })
+    }
+
+    fn writes(&self, chunk: u32) -> wgpu::ComputePassTimestampWrites<'_> {
+        wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(2 * chunk),
+            end_of_pass_write_index: Some(2 * chunk + 1),
+        }
+    }
+
+    fn resolve(&self, enc: &mut wgpu::CommandEncoder) {
+        enc.resolve_query_set(&self.set, 0..self.count, &self.resolve, 0);
+        enc.copy_buffer_to_buffer(&self.resolve, 0, &self.read, 0, self.count as u64 * 8);
+    }
+
+    /// The summed pass time; `None` when a pair is out of order (a driver
+    /// that does not keep its timestamps monotonic across a pass).
+    fn seconds(&self, r: &GpuRenderer) -> Result<Option<f64>, GpuError> {
+        let bytes = read_back(&r.ctx.device, &self.read)?;
+        // A byte vector need not be 8-aligned: copy, not cast.
+        let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
+        let mut sum = 0u64;
+        for pair in ticks.chunks_exact(2) {
+            match pair[1].checked_sub(pair[0]) {
+                Some(d) => sum += d,
+                None => return Ok(None),
+            }
+        }
+        let period_ns = r.ctx.queue.get_timestamp_period() as f64;
+        Ok((period_ns > 0.0).then_some(sum as f64 * period_ns * 1e-9))
     }
 }

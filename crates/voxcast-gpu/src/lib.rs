@@ -85,5 +85,5 @@ pub use backend::{choose, Choice, Device, DeviceRequest};
 pub use context::{
     adapter_info, compiled_backends, AdapterSummary, DeviceChoice, GpuContext, GpuError,
 };
-pub use renderer::GpuRenderer;
+pub use renderer::{parse_workgroup, Filter, GpuOptions, GpuRenderer, WORKGROUP_ENV};
 pub use upload::{Bricking, TEXTURE_LIMIT_ENV};

@@ -85,7 +85,95 @@ pub(crate) struct State {
     pub(crate) blocks: HashMap<usize, Blocks>,
     pub(crate) lut_tf: Option<TransferFunction>,
     pub(crate) out: Option<(u64, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, wgpu::Buffer)>,
+    /// Pipelines specialised for a render's [`Spec`], built on first use.
+    pub(crate) pipelines: HashMap<Spec, wgpu::ComputePipeline>,
 }
+
+/// What a specialised pipeline is built for: the method's code, the flag
+/// bits, the optical model and whether there are opaque shapes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct Spec {
+    pub(crate) method: u32,
+    pub(crate) flags: u32,
+    pub(crate) optical: u32,
+    pub(crate) shapes: bool,
+}
+
+/// The shader module and what every pipeline of it shares.
+pub(crate) struct Shader {
+    module: wgpu::ShaderModule,
+    layout: wgpu::PipelineLayout,
+    bricked: bool,
+    hw_filter: bool,
+    /// Invocations per workgroup in x and y (`VOXCAST_GPU_WORKGROUP`,
+    /// default 8×8).
+    pub(crate) workgroup: [u32; 2],
+}
+
+impl Shader {
+    /// The pipeline for `spec`, or the generic one for `None`.
+    pub(crate) fn pipeline(
+        &self,
+        device: &wgpu::Device,
+        spec: Option<Spec>,
+    ) -> wgpu::ComputePipeline {
+        let b = |v: bool| if v { 1.0 } else { 0.0 };
+        let mut constants = vec![
+            ("BRICKED", b(self.bricked)),
+            ("HW_FILTER", b(self.hw_filter)),
+            ("WG_X", self.workgroup[0] as f64),
+            ("WG_Y", self.workgroup[1] as f64),
+        ];
+        if let Some(s) = spec {
+            constants.extend([
+                ("SPEC", 1.0),
+                ("SPEC_METHOD", s.method as f64),
+                ("SPEC_FLAGS", s.flags as f64),
+                ("SPEC_OPTICAL", s.optical as f64),
+                ("SPEC_SHAPES", b(s.shapes)),
+            ]);
+        }
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(if spec.is_some() {
+                "raycast (specialised)"
+            } else {
+                "raycast"
+            }),
+            layout: Some(&self.layout),
+            module: &self.module,
+            entry_point: Some("main"),
+            compilation_options: wgpu::PipelineCompilationOptions {
+                constants: &constants,
+                ..Default::default()
+            },
+            cache: None,
+        })
+    }
+}
+
+/// The workgroup size from `VOXCAST_GPU_WORKGROUP` (`16x8`: x and y, each
+/// 1…32, at most 256 invocations), else 8×8.
+pub(crate) fn env_workgroup() -> [u32; 2] {
+    match std::env::var(WORKGROUP_ENV) {
+        Ok(v) => parse_workgroup(&v).unwrap_or_else(|| {
+            eprintln!("warning: {WORKGROUP_ENV}={v:?} is not XxY with x, y in 1…32 and 8…256 invocations; using 8x8");
+            [8, 8]
+        }),
+        Err(_) => [8, 8],
+    }
+}
+
+/// `"16x8"` → `[16, 8]`: each side 1…32, 8…256 invocations (the shader's
+/// statistics need six).
+pub fn parse_workgroup(v: &str) -> Option<[u32; 2]> {
+    let (x, y) = v.trim().split_once(['x', 'X'])?;
+    let (x, y) = (x.trim().parse::<u32>().ok()?, y.trim().parse::<u32>().ok()?);
+    ((1..=32).contains(&x) && (1..=32).contains(&y) && (8..=256).contains(&(x * y)))
+        .then_some([x, y])
+}
+
+/// The environment variable that sets the workgroup size (for tuning).
+pub const WORKGROUP_ENV: &str = "VOXCAST_GPU_WORKGROUP";
 
 /// A volume uploaded to the GPU, ready to render with any transfer function,
 /// camera and parameters (see the crate documentation).
@@ -101,7 +189,12 @@ pub struct GpuRenderer {
     pub(crate) geometry: Option<voxcast::geometry::Geometry>,
     pub(crate) lut_texture: wgpu::Texture,
     pub(crate) lut_view: wgpu::TextureView,
+    /// The generic pipeline (method, flags and optical model read from the
+    /// uniforms at run time).
     pub(crate) pipeline: wgpu::ComputePipeline,
+    pub(crate) shader: Shader,
+    /// Whether renders use specialised pipelines ([`GpuOptions::specialise`]).
+    pub(crate) specialise: bool,
     pub(crate) layout: wgpu::BindGroupLayout,
     pub(crate) uniform: wgpu::Buffer,
     /// Stored → normalised: `texel·scale + offset`.
@@ -109,6 +202,49 @@ pub struct GpuRenderer {
     pub(crate) offset: f32,
     pub(crate) format: wgpu::TextureFormat,
     pub(crate) state: Mutex<State>,
+    /// See [`GpuRenderer::setup_seconds`].
+    pub(crate) setup_seconds: f64,
+    /// Binding 16: linear under [`Filter::Hardware`], else unused.
+    pub(crate) sampler: wgpu::Sampler,
+    pub(crate) filter: Filter,
+}
+
+/// How a sample is reconstructed from the 3D texture.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Filter {
+    /// [`Filter::Hardware`] on a hardware GPU, [`Filter::Exact`] on a
+    /// software rasteriser (where the texture unit is emulated and the CPU's
+    /// arithmetic is what the parity tests check).
+    #[default]
+    Auto,
+    /// Eight texel loads and the CPU's trilinear arithmetic in `f32`: the
+    /// CPU's picture (the parity tests hold it to ≥ 40 dB).
+    Exact,
+    /// One fetch filtered by the texture unit: fewer instructions and
+    /// fetches per sample, with the hardware's weight precision (8
+    /// fractional bits on NVIDIA and AMD). Only for a volume in one brick
+    /// and a filterable format (u8, or u16/i16 that `f16` holds exactly);
+    /// otherwise [`Filter::Exact`] is used ([`GpuRenderer::filter`] says
+    /// which).
+    Hardware,
+}
+
+/// How [`GpuRenderer::with_options`] builds the renderer.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GpuOptions {
+    /// The 3D texture limit lowered to this many voxels per side (`None`:
+    /// the device's `max_texture_dimension_3d`, or
+    /// `VOXCAST_GPU_MAX_TEXTURE_3D` when set and smaller), so bricking can
+    /// be tried on volumes that would fit whole.
+    pub max_texture_side: Option<u32>,
+    /// How a sample is reconstructed.
+    pub filter: Filter,
+    /// Whether each render uses a pipeline specialised for its method, flags
+    /// and optical model (pipeline constants: the driver compiles out every
+    /// other path, so the shader needs fewer registers and runs more rays at
+    /// once). `None`: on a hardware GPU yes; on a software rasteriser no (it
+    /// compiles each variant slowly and gains little).
+    pub specialise: Option<bool>,
 }
 
 impl GpuRenderer {
@@ -119,19 +255,32 @@ impl GpuRenderer {
         volume: &Volume,
         window: [f32; 2],
     ) -> Result<GpuRenderer, GpuError> {
-        Self::with_texture_limit(ctx, volume, window, None)
+        Self::with_options(ctx, volume, window, GpuOptions::default())
     }
 
     /// [`GpuRenderer::new`] with the 3D texture limit lowered to `max_side`
-    /// voxels per side (`None`: the device's `max_texture_dimension_3d`, or
-    /// `VOXCAST_GPU_MAX_TEXTURE_3D` when set and smaller), so bricking can
-    /// be tried on volumes that would fit whole.
+    /// voxels per side (see [`GpuOptions::max_texture_side`]).
     pub fn with_texture_limit(
         ctx: Arc<GpuContext>,
         volume: &Volume,
         window: [f32; 2],
         max_side: Option<u32>,
     ) -> Result<GpuRenderer, GpuError> {
+        let options = GpuOptions {
+            max_texture_side: max_side,
+            ..GpuOptions::default()
+        };
+        Self::with_options(ctx, volume, window, options)
+    }
+
+    /// [`GpuRenderer::new`] with `options`.
+    pub fn with_options(
+        ctx: Arc<GpuContext>,
+        volume: &Volume,
+        window: [f32; 2],
+        options: GpuOptions,
+    ) -> Result<GpuRenderer, GpuError> {
+        let max_side = options.max_texture_side;
         // The CPU renderer's window checks and widening.
         let mut window = window;
         if window[0].is_finite() && window[0] == window[1] {
@@ -151,8 +300,20 @@ impl GpuRenderer {
             .fold(device_limit, u32::min)
             .max(2) as usize;
         let bricking = Bricking::new(volume.dims(), limit)?;
+        let start = std::time::Instant::now();
         let (bytes, format, scale, offset) = texels(volume, window);
-        scoped(
+        let wanted = match options.filter {
+            Filter::Auto if ctx.is_software() => Filter::Exact,
+            Filter::Auto => Filter::Hardware,
+            f => f,
+        };
+        let filter = match wanted {
+            Filter::Hardware if bricking.len() == 1 && format != wgpu::TextureFormat::R32Float => {
+                Filter::Hardware
+            }
+            _ => Filter::Exact,
+        };
+        let mut r = scoped(
             &ctx.device,
             "uploading the volume and building the shader",
             || {
@@ -165,9 +326,25 @@ impl GpuRenderer {
                     format,
                     scale,
                     offset,
+                    filter,
                 )
             },
-        )
+        )?;
+        r.specialise = options.specialise.unwrap_or(!r.ctx.is_software());
+        // The uploads are queued; wait for them so the time is true.
+        r.ctx.queue.submit([]);
+        r.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| GpuError::Device(format!("uploading the volume: {e}")))?;
+        r.setup_seconds = start.elapsed().as_secs_f64();
+        Ok(r)
+    }
+
+    /// Wall-clock seconds [`GpuRenderer::new`] took: converting and
+    /// uploading the volume, building the pipeline and the block grid.
+    pub fn setup_seconds(&self) -> f64 {
+        self.setup_seconds
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -180,7 +357,9 @@ impl GpuRenderer {
         format: wgpu::TextureFormat,
         scale: f32,
         offset: f32,
+        filter: Filter,
     ) -> GpuRenderer {
+        let hw = filter == Filter::Hardware;
         let dims = volume.dims();
         let device = &ctx.device;
         let bpp = format.block_copy_size(None).unwrap_or(4) as usize;
@@ -266,7 +445,9 @@ impl GpuRenderer {
                 binding,
                 visibility: wgpu::ShaderStages::COMPUTE,
                 ty: wgpu::BindingType::Texture {
-                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    sample_type: wgpu::TextureSampleType::Float {
+                        filterable: hw && binding == 1,
+                    },
                     view_dimension: dim,
                     multisampled: false,
                 },
@@ -300,24 +481,42 @@ impl GpuRenderer {
                 texture_entry(13, wgpu::TextureViewDimension::D3),
                 texture_entry(14, wgpu::TextureViewDimension::D3),
                 texture_entry(15, wgpu::TextureViewDimension::D3),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 16,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Sampler(if hw {
+                        wgpu::SamplerBindingType::Filtering
+                    } else {
+                        wgpu::SamplerBindingType::NonFiltering
+                    }),
+                    count: None,
+                },
             ],
+        });
+        let linear = if hw {
+            wgpu::FilterMode::Linear
+        } else {
+            wgpu::FilterMode::Nearest
+        };
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("volume"),
+            mag_filter: linear,
+            min_filter: linear,
+            ..Default::default()
         });
         let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("raycast"),
             bind_group_layouts: &[Some(&layout)],
             immediate_size: 0,
         });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("raycast"),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: wgpu::PipelineCompilationOptions {
-                constants: &[("BRICKED", if bricking.len() > 1 { 1.0 } else { 0.0 })],
-                ..Default::default()
-            },
-            cache: None,
-        });
+        let shader = Shader {
+            module,
+            layout: pipeline_layout,
+            bricked: bricking.len() > 1,
+            hw_filter: hw,
+            workgroup: env_workgroup(),
+        };
+        let pipeline = shader.pipeline(device, None);
         let uniform = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("params"),
             size: std::mem::size_of::<Params>() as u64,
@@ -334,6 +533,8 @@ impl GpuRenderer {
             lut_texture,
             lut_view,
             pipeline,
+            shader,
+            specialise: false,
             layout,
             uniform,
             scale,
@@ -343,7 +544,11 @@ impl GpuRenderer {
                 blocks: HashMap::new(),
                 lut_tf: None,
                 out: None,
+                pipelines: HashMap::new(),
             }),
+            setup_seconds: 0.0,
+            sampler,
+            filter,
         };
         {
             let mut st = r.state.lock().unwrap_or_else(|e| e.into_inner());
@@ -393,6 +598,24 @@ impl GpuRenderer {
             wgpu::TextureFormat::R16Float => "r16float",
             _ => "r32float",
         }
+    }
+
+    /// The reconstruction in use, `Exact` or `Hardware` ([`Filter::Auto`]
+    /// resolved; [`Filter::Hardware`] falls back to [`Filter::Exact`] for a
+    /// bricked volume or an `f32` texture).
+    pub fn filter(&self) -> Filter {
+        self.filter
+    }
+
+    /// Whether renders use pipelines specialised per method
+    /// ([`GpuOptions::specialise`]).
+    pub fn specialises(&self) -> bool {
+        self.specialise
+    }
+
+    /// Invocations per workgroup, x and y.
+    pub fn workgroup(&self) -> [u32; 2] {
+        self.shader.workgroup
     }
 
     /// The GPU context.

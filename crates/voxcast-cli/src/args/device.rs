@@ -18,6 +18,30 @@ impl From<DeviceArg> for voxcast_gpu::DeviceRequest {
     }
 }
 
+/// `--gpu-filter`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GpuFilterArg {
+    /// hardware on a hardware GPU, exact on a software rasteriser (lavapipe).
+    #[default]
+    Auto,
+    /// Eight texel loads and the CPU's trilinear arithmetic: the CPU's picture.
+    Exact,
+    /// The texture unit's trilinear filter: one fetch per sample, with the
+    /// hardware's weight precision (u8 and u16 volumes in one brick; others
+    /// fall back to exact).
+    Hardware,
+}
+
+impl From<GpuFilterArg> for voxcast_gpu::Filter {
+    fn from(f: GpuFilterArg) -> Self {
+        match f {
+            GpuFilterArg::Auto => voxcast_gpu::Filter::Auto,
+            GpuFilterArg::Exact => voxcast_gpu::Filter::Exact,
+            GpuFilterArg::Hardware => voxcast_gpu::Filter::Hardware,
+        }
+    }
+}
+
 /// `--device`'s long help, after `intro`: the GPU's methods come from the
 /// one table (`voxcast::render::Backend`), so the help cannot drift from
 /// what the GPU renders.

@@ -1,6 +1,6 @@
 //! `voxcast render`.
 
-use super::device::{device_help, DeviceArg};
+use super::device::{device_help, DeviceArg, GpuFilterArg};
 use super::scene::SceneArgs;
 use anyhow::Result;
 use clap::Args;
@@ -76,6 +76,12 @@ pub struct RenderArgs {
     /// has).
     #[arg(long, value_enum, default_value = "cpu", help_heading = "Device", long_help = device_help(""))]
     pub device: DeviceArg,
+    /// How the GPU reconstructs a sample: auto (hardware on a hardware GPU,
+    /// exact on a software one), exact (eight loads and the CPU's
+    /// arithmetic) or hardware (the texture unit's trilinear filter with its
+    /// 8-bit weights: 1.5–2.3× faster on an H100, PSNR within 0.2 dB).
+    #[arg(long, value_enum, default_value = "auto", help_heading = "Device")]
+    pub gpu_filter: GpuFilterArg,
     /// For a chunked store (OME-Zarr): the most decoded voxels held at once
     /// (e.g. 512MiB, 2GiB; default half the memory available). A level that
     /// fits is read whole and rendered as usual; a larger one is rendered

@@ -68,7 +68,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     let gpu = match &device {
         Device::Cpu => None,
         Device::Gpu(ctx) => Some(GpuMethods {
-            renderer: gpu_renderer(ctx, &prepared)?,
+            renderer: gpu_renderer(ctx, &prepared, a.gpu_filter.into(), quiet)?,
             scene: &scene,
             tf: &prepared.tf,
         }),
@@ -103,7 +103,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             bar.set_message(p.task.to_string());
         }
     };
-    let report = bench::run_on(
+    let mut report = bench::run_on(
         &scene,
         &prepared,
         &config,
@@ -111,6 +111,24 @@ pub fn run(a: BenchArgs) -> Result<()> {
         gpu.as_ref().map(|g| g as &dyn bench::MethodRenderer),
     )?;
     bar.finish_and_clear();
+    if let Some(g) = &gpu {
+        let r = &g.renderer;
+        let [wx, wy] = r.workgroup();
+        report.notes.push(format!(
+            "GPU: {} texture, {} filter, {} pipeline, workgroup {wx}×{wy}; set-up once, not timed above (volume converted and uploaded, pipeline built, block grid): {:.1} ms",
+            r.texture_format(),
+            match r.filter() {
+                voxcast_gpu::Filter::Hardware => "hardware (texture unit)",
+                _ => "exact",
+            },
+            if r.specialises() {
+                "specialised per method"
+            } else {
+                "generic"
+            },
+            r.setup_seconds() * 1e3
+        ));
+    }
     if !quiet {
         let r = &report.reference;
         let file = r

@@ -29,9 +29,27 @@ pub fn pick_device(
 pub fn gpu_renderer(
     ctx: &std::sync::Arc<voxcast_gpu::GpuContext>,
     prepared: &voxcast::scene::Prepared,
+    filter: voxcast_gpu::Filter,
+    quiet: bool,
 ) -> Result<voxcast_gpu::GpuRenderer> {
-    let r = voxcast_gpu::GpuRenderer::new(ctx.clone(), &prepared.volume, prepared.window)
-        .context("uploading the volume to the GPU")?
-        .with_geometry(prepared.geometry.as_deref())?;
+    let options = voxcast_gpu::GpuOptions {
+        filter,
+        ..Default::default()
+    };
+    let r = voxcast_gpu::GpuRenderer::with_options(
+        ctx.clone(),
+        &prepared.volume,
+        prepared.window,
+        options,
+    )
+    .context("uploading the volume to the GPU")?
+    .with_geometry(prepared.geometry.as_deref())?;
+    if filter == voxcast_gpu::Filter::Hardware && r.filter() != filter && !quiet {
+        eprintln!(
+            "--gpu-filter hardware: this volume is {} in {} brick(s); the texture unit filters one brick of u8 or f16 only, so the exact filter is used",
+            r.texture_format(),
+            r.bricking().len()
+        );
+    }
     Ok(r)
 }

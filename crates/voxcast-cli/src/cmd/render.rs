@@ -79,7 +79,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     )?;
     let (image, stats) = match &device {
         Device::Cpu => scene.render(&prepared, &progress)?,
-        Device::Gpu(ctx) => gpu_renderer(ctx, &prepared)?
+        Device::Gpu(ctx) => gpu_renderer(ctx, &prepared, a.gpu_filter.into(), quiet)?
             .render(&prepared.tf, &scene.camera, &scene.render)
             .context("rendering on the GPU")?,
     };
@@ -110,6 +110,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
             stats.samples_per_second() / 1e6,
             stats.early_terminated
         );
+        if let Some(d) = stats.device_seconds {
+            eprintln!(
+                "GPU time (timestamp queries, compute passes alone): {:.3} ms, {:.2} G samples/s",
+                d * 1e3,
+                stats.samples as f64 / d * 1e-9
+            );
+        }
     }
     Ok(())
 }

@@ -15,7 +15,7 @@ fn intersect_box(o: vec3<f32>, inv_d: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(enter, exit);
 }
 
-@compute @workgroup_size(8, 8, 1)
+@compute @workgroup_size(WG_X, WG_Y, 1)
 fn main(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
@@ -33,7 +33,7 @@ fn main(
     let first = P.first_pass;
     let end = P.end_pass;
     let passes = end - first;
-    let method = P.method;
+    let method = method_code();
     let idx = gid.y * width + gid.x;
     var rays = 0u;
     var hits = 0u;
@@ -73,7 +73,7 @@ fn main(
         var hit: Hit;
         hit.ok = false;
         var surf = vec3<f32>(0.0);
-        if P.shapes > 0u {
+        if any_shapes() {
             hit = geometry_hit(origin, dir);
             if hit.ok {
                 // The same every pass; the CPU shades (and counts) per pass.
@@ -97,7 +97,7 @@ fn main(
                 acc_c = vec3<f32>(0.0);
                 acc_a = 0.0;
                 var t0 = te.x;
-                if (P.flags & F_JITTER) != 0u {
+                if has_flag(F_JITTER) {
                     t0 = te.x + pixel_sequence(gid.x, gid.y, pass_i) * step;
                 }
                 var stop = false;

@@ -92,9 +92,9 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
     var pend_t = 0.0;
     var pend_entry = 0;
     var pend_rgb = vec3<f32>(0.0);
-    let method = P.method;
-    let grouped = (P.flags & F_GROUPED) != 0u;
-    let skip = (P.flags & F_SKIP) != 0u;
+    let method = method_code();
+    let grouped = has_flag(F_GROUPED);
+    let skip = has_flag(F_SKIP);
     let unit = P.unit;
     var w = walker_new(o, d, t_in, t_out);
     loop {
@@ -188,8 +188,8 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
 // follows the range its (head) value falls in; skipping an empty block
 // restarts the march on the base grid t0 + n·step.
 fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> bool {
-    let grouped = (P.flags & F_GROUPED) != 0u;
-    let skip = (P.flags & F_SKIP) != 0u;
+    let grouped = has_flag(F_GROUPED);
+    let skip = has_flag(F_SKIP);
     let unit = P.unit;
     let step = P.step * unit;
     var t = t0;
@@ -317,7 +317,7 @@ fn march_mc(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<u32>, pa
     let len = t_out - t_in;
     let count = u32(max(ceil(len / step), 1.0));
     let w = len / f32(count);
-    let skip = (P.flags & F_SKIP) != 0u;
+    let skip = has_flag(F_SKIP);
     var left = count;
     var base = 0.0;
     while left > 0u {
@@ -369,7 +369,7 @@ fn march_stratified(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<
     let khi = rng_next(&rng);
     let key = vec2<u32>(klo, khi);
     let last = u32(max(ceil((t_out - t_in) / s), 1.0)) - 1u;
-    let skip = (P.flags & F_SKIP) != 0u;
+    let skip = has_flag(F_SKIP);
     var w = walker_new(o, d, t_in, t_out);
     loop {
         if w.t >= w.t_out {

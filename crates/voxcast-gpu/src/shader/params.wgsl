@@ -37,3 +37,45 @@ const BIG: f32 = 3.0e38;
 @group(0) @binding(13) var vol5: texture_3d<f32>;
 @group(0) @binding(14) var vol6: texture_3d<f32>;
 @group(0) @binding(15) var vol7: texture_3d<f32>;
+// Linear under `HW_FILTER` (the texture unit's trilinear), else nearest and unused.
+@group(0) @binding(16) var vol_sampler: sampler;
+
+// Specialisation (pipeline constants, renderer.rs `Spec`): a pipeline built
+// for one method, flag set and optical model lets the driver compile out
+// every other path; without SPEC they are read from P at run time.
+override SPEC: bool = false;
+override SPEC_METHOD: u32 = 0u;
+override SPEC_FLAGS: u32 = 0u;
+override SPEC_OPTICAL: u32 = 0u;
+override SPEC_SHAPES: bool = true;
+// Invocations per workgroup (renderer.rs `env_workgroup`).
+override WG_X: u32 = 8u;
+override WG_Y: u32 = 8u;
+
+fn method_code() -> u32 {
+    if SPEC {
+        return SPEC_METHOD;
+    }
+    return P.method;
+}
+
+fn has_flag(f: u32) -> bool {
+    if SPEC {
+        return (SPEC_FLAGS & f) != 0u;
+    }
+    return (P.flags & f) != 0u;
+}
+
+fn optical_model() -> u32 {
+    if SPEC {
+        return SPEC_OPTICAL;
+    }
+    return P.optical;
+}
+
+fn any_shapes() -> bool {
+    if SPEC && !SPEC_SHAPES {
+        return false;
+    }
+    return P.shapes > 0u;
+}

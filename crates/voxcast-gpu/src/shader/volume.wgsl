@@ -24,9 +24,20 @@ fn texel(slot: u32, i: vec3<i32>) -> f32 {
 // software rasteriser such as lavapipe the switch costs ~8× per sample).
 override BRICKED: bool = true;
 
+// Whether the texture unit filters (`Filter::Hardware`: one fetch in place of
+// eight loads; its weights have the hardware's precision, 8 fractional bits
+// on NVIDIA), for an unbricked volume in a filterable format only.
+override HW_FILTER: bool = false;
+
 // Grid::sample: trilinear, coordinates clamped to the grid.
 fn sample(p0: vec3<f32>) -> f32 {
     let p = min(max(p0, vec3<f32>(0.0)), P.grid_max);
+    if HW_FILTER {
+        // Texel centres sit at (i + 0.5) / n; the clamp above keeps the
+        // fetch between the first and last centres, as the CPU clamps.
+        let uvw = (p + vec3<f32>(0.5)) / vec3<f32>(P.dims);
+        return textureSampleLevel(vol, vol_sampler, uvw, 0.0).x * P.value_scale + P.value_offset;
+    }
     let dims = vec3<i32>(P.dims);
     let last = max(dims - vec3<i32>(2), vec3<i32>(0));
     let i = min(vec3<i32>(p), last);
@@ -140,7 +151,7 @@ fn classify(p: vec3<f32>, v: f32) -> Eval {
         return e;
     }
     var rgb = t.xyz;
-    if (P.flags & F_SHADING) != 0u {
+    if has_flag(F_SHADING) {
         rgb = shade(rgb, gradient(p));
         n_shaded += 1u;
     }
@@ -153,7 +164,7 @@ fn classify(p: vec3<f32>, v: f32) -> Eval {
 fn add(rgb: vec3<f32>, alpha: f32) -> bool {
     var em = rgb * alpha;
     var ab = alpha;
-    let model = P.optical;
+    let model = optical_model();
     if model == OPTICAL_ABSORPTION_ONLY {
         em = vec3<f32>(0.0);
     } else if model == OPTICAL_EMISSION_ONLY {

@@ -24,6 +24,11 @@ pub struct RenderStats {
     pub capped_paths: u64,
     /// Wall-clock seconds of the render.
     pub seconds: f64,
+    /// Seconds the GPU spent in the render's compute passes, read from
+    /// timestamp queries (upload, read-back and the driver's overhead
+    /// excluded); `None` on the CPU or where the adapter has no timestamps.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub device_seconds: Option<f64>,
 }
 
 fn is_zero(n: &u64) -> bool {

@@ -630,6 +630,7 @@ impl<'s> OutOfCore<'s> {
             early_terminated: counts_total.terminated,
             capped_paths: 0,
             seconds: start.elapsed().as_secs_f64(),
+            device_seconds: None,
         };
         Ok((image, rs, stats))
     }
