@@ -146,7 +146,9 @@ fn fill_box<T: Stored>(
     cache: &ChunkCache<'_>,
 ) -> Result<Option<(f32, f32)>> {
     let d: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as usize);
-    out.clear();
+    // The chunks cover the box, so every voxel is written below: the
+    // buffer is only resized, not cleared (a memset per brick).
+    out.truncate(d[0] * d[1] * d[2]);
     out.resize(d[0] * d[1] * d[2], T::default());
     let mut range: Option<(f32, f32)> = None;
     let mut widen = |r: (f32, f32)| {
