@@ -164,7 +164,7 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
                 continue;
             }
             if k + 1u < k1 {
-                let alpha = 1.0 - exp(-lut_entry(last.entry).w * ratio);
+                let alpha = 1.0 - exp(-last.sigma * ratio);
                 if alpha > 0.0 && add(last.rgb, alpha) {
                     return true;
                 }
@@ -194,7 +194,7 @@ fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -
     let step = P.step * unit;
     var t = t0;
     var head_value = 0.0;
-    var head = Eval(-1, vec3<f32>(0.0));
+    var head = Eval(-1, vec3<f32>(0.0), 0.0);
     var count = 0u;
     var w = walker_new(o, d, t_in, t_out);
     loop {
@@ -232,7 +232,7 @@ fn march_threshold(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -
             if head.entry >= 0 {
                 var alpha: f32;
                 if t + s < t_out {
-                    alpha = 1.0 - exp(-lut_entry(head.entry).w * r_step);
+                    alpha = 1.0 - exp(-head.sigma * r_step);
                 } else {
                     alpha = alpha_for(head.entry, t_out + (t0 - t_in) - t);
                 }
@@ -400,7 +400,7 @@ fn march_stratified(o: vec3<f32>, d: vec3<f32>, t_in: f32, t_out: f32, px: vec2<
             if k == last {
                 alpha = alpha_for(e.entry, len);
             } else {
-                alpha = 1.0 - exp(-lut_entry(e.entry).w * P.step);
+                alpha = 1.0 - exp(-e.sigma * P.step);
             }
             if alpha > 0.0 && add(e.rgb, alpha) {
                 return true;

@@ -129,6 +129,7 @@ fn shade(rgb: vec3<f32>, g: vec3<f32>) -> vec3<f32> {
 struct Eval {
     entry: i32,   // −1: transparent
     rgb: vec3<f32>,
+    sigma: f32,   // the entry's extinction, kept so compositing need not load it again
 };
 
 // ray.rs evaluate: reconstruct, classify, shade.
@@ -157,6 +158,7 @@ fn classify(p: vec3<f32>, v: f32) -> Eval {
     }
     e.entry = i;
     e.rgb = rgb;
+    e.sigma = t.w;
     return e;
 }
 
