@@ -200,7 +200,10 @@ impl GpuContext {
             label: Some("voxcast"),
             // Timestamps time the compute passes apart from upload and
             // read-back (`RenderStats::device_seconds`), where offered.
-            required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
+            // `r32float` volumes filtered by the texture unit
+            // (`Filter::Hardware`), where offered.
+            required_features: adapter.features()
+                & (wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::FLOAT32_FILTERABLE),
             required_limits: limits,
             ..Default::default()
         }))
@@ -226,6 +229,13 @@ impl GpuContext {
     /// The adapter's limits.
     pub fn limits(&self) -> wgpu::Limits {
         self.adapter.limits()
+    }
+
+    /// Whether `r32float` textures can be filtered by the texture unit.
+    pub fn filters_f32(&self) -> bool {
+        self.device
+            .features()
+            .contains(wgpu::Features::FLOAT32_FILTERABLE)
     }
 
     /// Whether renders are timed on the device by timestamp queries.

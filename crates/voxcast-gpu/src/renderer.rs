@@ -223,9 +223,9 @@ pub enum Filter {
     /// One fetch filtered by the texture unit: fewer instructions and
     /// fetches per sample, with the hardware's weight precision (8
     /// fractional bits on NVIDIA and AMD). Only for a volume in one brick
-    /// and a filterable format (u8, or u16/i16 that `f16` holds exactly);
-    /// otherwise [`Filter::Exact`] is used ([`GpuRenderer::filter`] says
-    /// which).
+    /// and a filterable format (u8, u16/i16 that `f16` holds exactly, and
+    /// `f32` where the device has `FLOAT32_FILTERABLE`); otherwise
+    /// [`Filter::Exact`] is used ([`GpuRenderer::filter`] says which).
     Hardware,
 }
 
@@ -308,7 +308,10 @@ impl GpuRenderer {
             f => f,
         };
         let filter = match wanted {
-            Filter::Hardware if bricking.len() == 1 && format != wgpu::TextureFormat::R32Float => {
+            Filter::Hardware
+                if bricking.len() == 1
+                    && (format != wgpu::TextureFormat::R32Float || ctx.filters_f32()) =>
+            {
                 Filter::Hardware
             }
             _ => Filter::Exact,
@@ -602,7 +605,7 @@ impl GpuRenderer {
 
     /// The reconstruction in use, `Exact` or `Hardware` ([`Filter::Auto`]
     /// resolved; [`Filter::Hardware`] falls back to [`Filter::Exact`] for a
-    /// bricked volume or an `f32` texture).
+    /// bricked volume, or an `f32` texture the device cannot filter).
     pub fn filter(&self) -> Filter {
         self.filter
     }

@@ -46,7 +46,7 @@ pub fn gpu_renderer(
     .with_geometry(prepared.geometry.as_deref())?;
     if filter == voxcast_gpu::Filter::Hardware && r.filter() != filter && !quiet {
         eprintln!(
-            "--gpu-filter hardware: this volume is {} in {} brick(s); the texture unit filters one brick of u8 or f16 only, so the exact filter is used",
+            "--gpu-filter hardware: this volume is {} in {} brick(s); the texture unit filters one brick of u8 or f16 (f32 where the device offers FLOAT32_FILTERABLE), so the exact filter is used",
             r.texture_format(),
             r.bricking().len()
         );
