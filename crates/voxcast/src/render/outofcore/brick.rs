@@ -3,7 +3,7 @@
 //! march of every pixel whose ray crosses it — eight pixels per SIMD packet
 //! where the CPU allows, else the scalar loop ([`super::march`]).
 
-use super::cache::ChunkCache;
+use super::cache::{Chunk, ChunkCache};
 use super::march::{self, BrickFrame, Px, RowCount};
 use super::Geo;
 use crate::error::{Error, Result};
@@ -15,6 +15,7 @@ use crate::transfer::Lut;
 use crate::volume::{ChunkRange, Grid, ScalarType, Voxel, VoxelData};
 use glam::{Vec3, Vec4};
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// A brick's frame before the grid is typed.
 pub(super) struct FrameArgs<'a> {
@@ -157,6 +158,14 @@ fn fill_box<T: Stored>(
             None => r,
         })
     };
+    // What each chunk gives the box (fetched in order, so an error names
+    // the first chunk that failed), then the copy, slice by slice in
+    // parallel.
+    enum Src<T> {
+        Fill(T),
+        Data(Arc<Chunk>, [u64; 3], [usize; 3]),
+    }
+    let mut parts = Vec::with_capacity(chunks.len());
     for &k in chunks {
         let (clo, chi) = geo.level.chunk_box(k);
         // The part of the chunk inside the data box.
@@ -170,18 +179,12 @@ fn fill_box<T: Stored>(
             if v.is_finite() {
                 widen((v, v));
             }
-            let fill = T::from_f32(v);
-            for z in a[2]..b[2] {
-                for y in a[1]..b[1] {
-                    let o = ((z - lo[2]) as usize * d[1] + (y - lo[1]) as usize) * d[0];
-                    out[o + (a[0] - lo[0]) as usize..o + (b[0] - lo[0]) as usize].fill(fill);
-                }
-            }
+            parts.push((a, b, Src::Fill(T::from_f32(v))));
             continue;
         }
         let chunk = cache.get((geo.lidx, k))?;
-        let src = T::of(&chunk.data);
-        if src.len() != cd[0] * cd[1] * cd[2] {
+        let n = T::of(&chunk.data).len();
+        if n != cd[0] * cd[1] * cd[2] {
             return Err(Error::invalid(format!(
                 "level {} chunk {:?}: the store returned {} voxels of another type or shape (expected {}×{}×{})",
                 geo.lidx, k, chunk.data.len(), cd[0], cd[1], cd[2]
@@ -190,16 +193,30 @@ fn fill_box<T: Stored>(
         if let Some(r) = chunk.range {
             widen(r);
         }
-        for z in a[2]..b[2] {
-            for y in a[1]..b[1] {
-                let o = ((z - lo[2]) as usize * d[1] + (y - lo[1]) as usize) * d[0];
-                let s = ((z - clo[2]) as usize * cd[1] + (y - clo[1]) as usize) * cd[0];
-                let n = (b[0] - a[0]) as usize;
-                out[o + (a[0] - lo[0]) as usize..][..n]
-                    .copy_from_slice(&src[s + (a[0] - clo[0]) as usize..][..n]);
-            }
-        }
+        parts.push((a, b, Src::Data(chunk, clo, cd)));
     }
+    out.par_chunks_mut(d[0] * d[1])
+        .enumerate()
+        .for_each(|(zi, slab)| {
+            let z = lo[2] + zi as u64;
+            for (a, b, src) in &parts {
+                if z < a[2] || z >= b[2] {
+                    continue;
+                }
+                let n = (b[0] - a[0]) as usize;
+                for y in a[1]..b[1] {
+                    let o = (y - lo[1]) as usize * d[0] + (a[0] - lo[0]) as usize;
+                    match src {
+                        Src::Fill(v) => slab[o..o + n].fill(*v),
+                        Src::Data(chunk, clo, cd) => {
+                            let s = ((z - clo[2]) as usize * cd[1] + (y - clo[1]) as usize) * cd[0]
+                                + (a[0] - clo[0]) as usize;
+                            slab[o..o + n].copy_from_slice(&T::of(&chunk.data)[s..s + n]);
+                        }
+                    }
+                }
+            }
+        });
     Ok(range)
 }
 
