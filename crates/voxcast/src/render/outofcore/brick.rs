@@ -34,6 +34,9 @@ pub(super) struct FrameArgs<'a> {
     pub(super) window: [f32; 2],
     /// The SIMD packets' instruction set, `None` for the scalar loop.
     pub(super) packets: Option<crate::render::packet::Level>,
+    /// The brick's cell flags and cell counts, for the packets to skip the
+    /// empty cells (`None`: empty-space skipping off).
+    pub(super) cells: Option<(&'a [i32], [usize; 3])>,
 }
 
 /// The brick being marched: its data box copied out of the cached chunks,
@@ -105,18 +108,13 @@ impl BrickBuf {
         }
     }
 
-    /// The box (voxel coordinates of the buffer) around the cells whose
-    /// values may show; `None` when none may.
-    pub(super) fn visible_box(
-        &self,
-        dims: [usize; 3],
-        visible: &impl Fn(f32, f32) -> bool,
-    ) -> Option<(Vec3, Vec3)> {
+    /// The value range of each [`CELL`]³ cell of the buffer (its `dims`).
+    pub(super) fn cell_ranges(&self, dims: [usize; 3]) -> CellRanges {
         match self {
-            BrickBuf::U8(v) => visible_cells(v, dims, visible),
-            BrickBuf::U16(v) => visible_cells(v, dims, visible),
-            BrickBuf::I16(v) => visible_cells(v, dims, visible),
-            BrickBuf::F32(v) => visible_cells(v, dims, visible),
+            BrickBuf::U8(v) => cell_ranges(v, dims),
+            BrickBuf::U16(v) => cell_ranges(v, dims),
+            BrickBuf::I16(v) => cell_ranges(v, dims),
+            BrickBuf::F32(v) => cell_ranges(v, dims),
         }
     }
 
@@ -220,58 +218,108 @@ fn fill_box<T: Stored>(
     Ok(range)
 }
 
-/// Edge of the cells [`visible_cells`] tests, in voxels.
+/// Edge of the cells a brick is divided into for skipping, in voxels.
 const CELL: usize = 4;
 
-/// The box around the visible cells of `data`: each cell of [`CELL`]³
-/// voxels is tested by the range of the voxels a sample inside it
-/// interpolates (its own and the next layer on each axis).
-fn visible_cells<T: Voxel>(
-    data: &[T],
-    d: [usize; 3],
-    visible: &impl Fn(f32, f32) -> bool,
-) -> Option<(Vec3, Vec3)> {
-    let n: [usize; 3] = d.map(|v| v.div_ceil(CELL));
-    let mut lo = [usize::MAX; 3];
-    let mut hi = [0usize; 3];
-    for cz in 0..n[2] {
-        for cy in 0..n[1] {
-            for cx in 0..n[0] {
-                let c = [cx, cy, cz];
-                // Inside the box already: nothing to learn.
-                if lo[0] != usize::MAX && (0..3).all(|a| c[a] >= lo[a] && c[a] <= hi[a]) {
-                    continue;
-                }
-                let a: [usize; 3] = std::array::from_fn(|i| c[i] * CELL);
-                let b: [usize; 3] = std::array::from_fn(|i| (a[i] + CELL + 1).min(d[i]));
-                let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-                for z in a[2]..b[2] {
-                    for y in a[1]..b[1] {
-                        let r = (z * d[1] + y) * d[0];
-                        for v in &data[r + a[0]..r + b[0]] {
-                            let v = v.to_f32();
-                            mn = mn.min(v);
-                            mx = mx.max(v);
-                        }
-                    }
-                }
-                if mn <= mx && visible(mn, mx) {
-                    for i in 0..3 {
-                        lo[i] = lo[i].min(c[i]);
-                        hi[i] = hi[i].max(c[i]);
-                    }
+/// A brick's cells of [`CELL`]³ voxels and the range of the values a
+/// sample inside each may interpolate (its own voxels and the next layer on
+/// each axis). Independent of the transfer function, so a warm renderer
+/// keeps them from frame to frame (see `OutOfCore`).
+pub(super) struct CellRanges {
+    pub(super) counts: [usize; 3],
+    ranges: Vec<(f32, f32)>,
+}
+
+impl CellRanges {
+    /// Bytes held.
+    pub(super) fn bytes(&self) -> u64 {
+        (self.ranges.len() * std::mem::size_of::<(f32, f32)>()) as u64
+    }
+
+    /// Each cell's flag in `flags` (−1 where nothing in it can show, the
+    /// packets' empty-block flag) and the box (voxel coordinates of the
+    /// buffer) around the cells that may show; `None` when none may.
+    pub(super) fn flags(
+        &self,
+        visible: &impl Fn(f32, f32) -> bool,
+        flags: &mut Vec<i32>,
+    ) -> Option<(Vec3, Vec3)> {
+        let n = self.counts;
+        flags.clear();
+        flags.resize(self.ranges.len(), -1);
+        let mut lo = [usize::MAX; 3];
+        let mut hi = [0usize; 3];
+        for (i, &(mn, mx)) in self.ranges.iter().enumerate() {
+            if mn <= mx && visible(mn, mx) {
+                flags[i] = 0;
+                let c = [i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])];
+                for a in 0..3 {
+                    lo[a] = lo[a].min(c[a]);
+                    hi[a] = hi[a].max(c[a]);
                 }
             }
         }
+        if lo[0] == usize::MAX {
+            return None;
+        }
+        let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
+        let h = Vec3::from(hi.map(|c| ((c + 1) * CELL) as f32));
+        Some((l, h))
     }
-    if lo[0] == usize::MAX {
-        return None;
+}
+
+/// The range of `it`'s pairs.
+fn span(it: impl Iterator<Item = (f32, f32)>) -> (f32, f32) {
+    it.fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| {
+        (a.min(c), b.max(d))
+    })
+}
+
+/// [`CellRanges`] of `data` (`d` voxels), reduced one axis at a time: x in
+/// parallel over the slices, then y, then z, so each voxel is read about
+/// once.
+fn cell_ranges<T: Voxel>(data: &[T], d: [usize; 3]) -> CellRanges {
+    let n: [usize; 3] = d.map(|v| v.div_ceil(CELL));
+    let reach = |c: usize, axis: usize| c * CELL..(c * CELL + CELL + 1).min(d[axis]);
+    let mut rows = vec![(0.0f32, 0.0f32); n[0] * d[1] * d[2]];
+    rows.par_chunks_mut(n[0] * d[1])
+        .enumerate()
+        .for_each(|(z, plane)| {
+            for y in 0..d[1] {
+                let row = &data[(z * d[1] + y) * d[0]..][..d[0]];
+                for (cx, o) in plane[y * n[0]..][..n[0]].iter_mut().enumerate() {
+                    let r = &row[reach(cx, 0)];
+                    let first = r[0].to_f32();
+                    let (mut mn, mut mx) = (first, first);
+                    for v in &r[1..] {
+                        let v = v.to_f32();
+                        mn = mn.min(v);
+                        mx = mx.max(v);
+                    }
+                    *o = (mn, mx);
+                }
+            }
+        });
+    let mut planes = vec![(0.0f32, 0.0f32); n[0] * n[1] * d[2]];
+    for z in 0..d[2] {
+        for cy in 0..n[1] {
+            for cx in 0..n[0] {
+                planes[(z * n[1] + cy) * n[0] + cx] =
+                    span(reach(cy, 1).map(|y| rows[(z * d[1] + y) * n[0] + cx]));
+            }
+        }
     }
-    let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
-    let h = Vec3::from(std::array::from_fn::<f32, 3, _>(|i| {
-        ((hi[i] + 1) * CELL) as f32
-    }));
-    Some((l, h))
+    let mut ranges = Vec::with_capacity(n[0] * n[1] * n[2]);
+    for cz in 0..n[2] {
+        for cy in 0..n[1] {
+            for cx in 0..n[0] {
+                ranges.push(span(
+                    reach(cz, 2).map(|z| planes[(z * n[1] + cy) * n[0] + cx]),
+                ));
+            }
+        }
+    }
+    CellRanges { counts: n, ranges }
 }
 
 fn march_rows<T: Stored>(
@@ -329,9 +377,9 @@ fn march_rows<T: Stored>(
         inv_spacing: a.inv_spacing,
         step: a.st,
         unit: a.unit,
-        skip_empty: false,
-        block_size: 1,
-        block_counts: [1; 3],
+        skip_empty: a.cells.is_some(),
+        block_size: a.cells.map_or(1, |_| CELL),
+        block_counts: a.cells.map_or([1; 3], |c| c.1),
         empty: &[],
         occupied: None,
         seed: 0,
@@ -346,7 +394,7 @@ fn march_rows<T: Stored>(
         },
         stop: a.stop,
         jitter: None,
-        empty: None,
+        empty: a.cells.map(|c| c.0),
         shading: a.shading,
         z_pairs: &z_pairs,
         level,

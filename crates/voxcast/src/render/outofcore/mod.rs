@@ -40,7 +40,7 @@ use crate::render::shading::BlinnPhong;
 use crate::render::{Method, Order, RenderParams, RenderStats};
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
 use crate::volume::{ChunkRange, ChunkedSource, Level};
-use brick::{BrickBuf, FrameArgs};
+use brick::{BrickBuf, CellRanges, FrameArgs};
 use cache::ChunkCache;
 use glam::Vec3;
 use march::{Px, RowCount};
@@ -264,6 +264,18 @@ pub struct OutOfCore<'s> {
     source: &'s dyn ChunkedSource,
     ooc: OutOfCoreParams,
     cache: ChunkCache<'s>,
+    /// Bricks' cell ranges, kept from frame to frame within a sixteenth of
+    /// the budget: a warm frame flags a brick's empty cells without reading
+    /// its voxels again.
+    cells: std::sync::Mutex<CellStore>,
+}
+
+/// The cell ranges of bricks marched so far, by (level, chunk, shaded
+/// border), and the bytes they hold.
+#[derive(Default)]
+struct CellStore {
+    map: std::collections::HashMap<(usize, [u64; 3], bool), std::sync::Arc<CellRanges>>,
+    bytes: u64,
 }
 
 impl<'s> OutOfCore<'s> {
@@ -279,7 +291,12 @@ impl<'s> OutOfCore<'s> {
             .max()
             .unwrap_or(0);
         let cache = ChunkCache::new(source, ooc.budget.saturating_sub(brick_max));
-        OutOfCore { source, ooc, cache }
+        OutOfCore {
+            source,
+            ooc,
+            cache,
+            cells: Default::default(),
+        }
     }
 
     /// What the cache has done since it was made.
@@ -524,6 +541,7 @@ impl<'s> OutOfCore<'s> {
                 });
             }
             let mut buf = BrickBuf::new(ty);
+            let mut flags = Vec::new();
             for (j, b) in plan.iter().enumerate() {
                 cursor.store(j, Ordering::Release);
                 if cancel.load(Ordering::Relaxed) {
@@ -565,8 +583,28 @@ impl<'s> OutOfCore<'s> {
                 let dims = std::array::from_fn(|a| (dbox.1[a] - dbox.0[a]) as usize);
                 let data_lo = Vec3::from(dbox.0.map(|v| v as f32));
                 // Samples outside the box around the brick's visible cells are
-                // transparent: the march skips them.
-                let Some((vlo, vhi)) = buf.visible_box(dims, &visible) else {
+                // transparent: the march skips them, and the packets skip
+                // the empty cells inside it.
+                let key = (lidx, b.chunk, shading.is_some());
+                let kept = self
+                    .cells
+                    .lock()
+                    .ok()
+                    .and_then(|c| c.map.get(&key).cloned());
+                let cell_ranges = match kept {
+                    Some(c) => c,
+                    None => {
+                        let c = std::sync::Arc::new(buf.cell_ranges(dims));
+                        if let Ok(mut store) = self.cells.lock() {
+                            if store.bytes + c.bytes() <= ooc.budget / 16 {
+                                store.bytes += c.bytes();
+                                store.map.insert(key, c.clone());
+                            }
+                        }
+                        c
+                    }
+                };
+                let Some((vlo, vhi)) = cell_ranges.flags(&visible, &mut flags) else {
                     stats.empty += 1;
                     progress(j + 1, plan.len());
                     continue;
@@ -593,6 +631,9 @@ impl<'s> OutOfCore<'s> {
                     shading,
                     window,
                     packets,
+                    cells: params
+                        .skip_empty
+                        .then_some((&flags[..], cell_ranges.counts)),
                 };
                 let c = buf.march(&frame, dims, &mut px, w, b.rect);
                 counts_total.samples += c.samples;

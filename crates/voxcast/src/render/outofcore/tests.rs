@@ -247,3 +247,40 @@ fn packets_and_the_scalar_loop_march_bricks_to_the_same_pixels() {
         }
     }
 }
+
+#[test]
+fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_ranges() {
+    // The demo's bricks hold transparent cells: with skipping the packets
+    // take fewer samples and give the same pixels; a second frame of the
+    // same renderer reuses the cell ranges and gives the same image.
+    let vol = crate::builtin::open("demo").unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let window = tf.window_for(&vol, None);
+    let src = MemorySource::new(vol.clone(), 0, [24, 20, 32]).unwrap();
+    let ooc = OutOfCore::new(&src, level0(64 << 20));
+    let cam = camera(1.0, Projection::Perspective);
+    let no = AtomicBool::new(false);
+    let mut p = params(96, false);
+    p.jitter = false;
+    let (skip, s_skip, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
+    let (again, s_again, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
+    p.skip_empty = false;
+    let (all, s_all, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
+    let worst = skip
+        .pixels
+        .iter()
+        .zip(&all.pixels)
+        .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
+        .fold(0f32, f32::max);
+    assert!(worst < 1e-4, "skipping changed a pixel by {worst}");
+    assert_eq!(skip.pixels, again.pixels, "the warm frame differs");
+    assert_eq!(s_skip.samples, s_again.samples);
+    if crate::render::packet::level(crate::render::Simd::Auto).is_some() {
+        assert!(
+            s_skip.samples < s_all.samples,
+            "skipping took {} samples, not fewer than {}",
+            s_skip.samples,
+            s_all.samples
+        );
+    }
+}

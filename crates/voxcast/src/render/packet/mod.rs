@@ -366,8 +366,8 @@ impl<T: Voxel> Packets<'_, T> {
     }
 
     /// Marches samples `k0..k_end` of each lane through the vector loop,
-    /// from the colour and opacity `acc` holds (premultiplied), without
-    /// skipping; `count` gets each lane's samples and shaded samples,
+    /// from the colour and opacity `acc` holds (premultiplied), skipping
+    /// the empty blocks of `empty` when given; `count` gets each lane's samples and shaded samples,
     /// `alive` whether it is still going (not terminated early). The
     /// caller composites a ray's last sample. For the out-of-core renderer,
     /// whose rays cross brick after brick.
@@ -378,19 +378,30 @@ impl<T: Voxel> Packets<'_, T> {
         count: &mut [[u32; 2]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        debug_assert!(self.empty.is_none() && self.imp.is_none());
+        debug_assert!(self.imp.is_none());
+        debug_assert!(self
+            .empty
+            .is_none_or(|e| { e.len() == self.f.block_counts.iter().product::<usize>() }));
         let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
         // SAFETY: as in `row`: the caller took `level` from [`level`],
-        // checked [`fits`] for the grid and [`shades`] for the shading.
+        // checked [`fits`] for the grid and [`shades`] for the shading;
+        // `empty`, when given, holds a flag per block of the frame's
+        // `block_counts`.
         #[cfg(target_arch = "x86_64")]
         unsafe {
             macro_rules! go {
                 ($f:ident) => {
-                    match self.shading.is_some() {
-                        false => avx2::$f::<T, false, false, false>(
+                    match (self.empty.is_some(), self.shading.is_some()) {
+                        (false, false) => avx2::$f::<T, false, false, false>(
                             self, lanes, &mut imp, acc, count, alive,
                         ),
-                        true => avx2::$f::<T, false, true, false>(
+                        (true, false) => avx2::$f::<T, true, false, false>(
+                            self, lanes, &mut imp, acc, count, alive,
+                        ),
+                        (false, true) => avx2::$f::<T, false, true, false>(
+                            self, lanes, &mut imp, acc, count, alive,
+                        ),
+                        (true, true) => avx2::$f::<T, true, true, false>(
                             self, lanes, &mut imp, acc, count, alive,
                         ),
                     }
