@@ -112,9 +112,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         );
         if let Some(d) = stats.device_seconds {
             eprintln!(
-                "GPU time (timestamp queries, compute passes alone): {:.3} ms, {:.2} G samples/s",
+                "GPU time (timestamp queries, compute passes alone): {:.3} ms, {:.1} M samples/s",
                 d * 1e3,
-                stats.samples as f64 / d * 1e-9
+                stats.samples as f64 / d * 1e-6
             );
         }
     }
