@@ -15,36 +15,10 @@
 use std::sync::Arc;
 use voxcast::render::{MethodSpec, RenderParams};
 use voxcast::scene::Scene;
-use voxcast_gpu::{DeviceChoice, GpuContext, GpuRenderer};
+use voxcast_gpu::{GpuContext, GpuRenderer};
 
-fn in_ci() -> bool {
-    std::env::var("CI")
-        .map(|v| v == "true" || v == "1")
-        .unwrap_or(false)
-}
-
-fn context() -> Option<Arc<GpuContext>> {
-    match GpuContext::new(DeviceChoice::Gpu) {
-        Ok(c) => {
-            eprintln!("GPU: {}", c.info());
-            Some(c)
-        }
-        Err(e) if !in_ci() => {
-            eprintln!("skipping: {e}");
-            None
-        }
-        Err(e) => panic!("CI=true but {e}"),
-    }
-}
-
-fn scene(rel: &str) -> Option<Scene> {
-    let p = voxcast::testdata::data_path(rel)?;
-    let mut s = Scene::default();
-    s.input.path = p.to_string_lossy().into_owned();
-    s.camera.azimuth = 35.0;
-    s.camera.elevation = 20.0;
-    Some(s)
-}
+mod common;
+use common::{context, scene};
 
 /// The methods compared, with the spp that makes the stochastic ones
 /// progressive.

@@ -6,37 +6,26 @@
 
 use std::sync::Arc;
 use voxcast::render::{MethodSpec, OpticalModel, RenderParams};
-use voxcast::scene::Scene;
-use voxcast_gpu::{parse_workgroup, DeviceChoice, Filter, GpuContext, GpuOptions, GpuRenderer};
+use voxcast::scene::{Prepared, Scene};
+use voxcast_gpu::{parse_workgroup, Filter, GpuContext, GpuOptions, GpuRenderer};
 
-fn context() -> Option<Arc<GpuContext>> {
-    let ci = std::env::var("CI").is_ok_and(|v| v == "true" || v == "1");
-    match GpuContext::new(DeviceChoice::Gpu) {
-        Ok(c) => Some(c),
-        Err(e) if !ci => {
-            eprintln!("skipping: {e}");
-            None
-        }
-        Err(e) => panic!("CI=true but {e}"),
-    }
-}
+mod common;
+use common::{context, scene};
 
-fn prepared(rel: &str) -> Option<(Scene, voxcast::scene::Prepared)> {
-    let p = voxcast::testdata::data_path(rel)?;
-    let mut s = Scene::default();
-    s.input.path = p.to_string_lossy().into_owned();
-    s.camera.azimuth = 35.0;
-    s.camera.elevation = 20.0;
+fn prepared(rel: &str) -> Option<(Scene, Prepared)> {
+    let s = scene(rel)?;
     let prepared = s.prepare().unwrap();
     Some((s, prepared))
 }
 
-fn renderer(
-    ctx: &Arc<GpuContext>,
-    p: &voxcast::scene::Prepared,
-    filter: Filter,
-    specialise: bool,
-) -> GpuRenderer {
+/// The adapter and the teapot, or `None` (the test skips) without either.
+fn teapot() -> Option<(Arc<GpuContext>, Scene, Prepared)> {
+    let ctx = context()?;
+    let (scene, p) = prepared("teapot_ct/slices")?;
+    Some((ctx, scene, p))
+}
+
+fn renderer(ctx: &Arc<GpuContext>, p: &Prepared, filter: Filter, specialise: bool) -> GpuRenderer {
     let options = GpuOptions {
         filter,
         specialise: Some(specialise),
@@ -47,8 +36,7 @@ fn renderer(
 
 #[test]
 fn specialised_pipelines_match_the_generic_one() {
-    let Some(ctx) = context() else { return };
-    let Some((scene, p)) = prepared("teapot_ct/slices") else {
+    let Some((ctx, scene, p)) = teapot() else {
         return;
     };
     let generic = renderer(&ctx, &p, Filter::Exact, false);
@@ -106,8 +94,7 @@ fn specialised_pipelines_match_the_generic_one() {
 
 #[test]
 fn hardware_filter_is_close_to_exact() {
-    let Some(ctx) = context() else { return };
-    let Some((scene, p)) = prepared("teapot_ct/slices") else {
+    let Some((ctx, scene, p)) = teapot() else {
         return;
     };
     let exact = renderer(&ctx, &p, Filter::Exact, false);
@@ -156,8 +143,7 @@ fn hardware_filter_is_close_to_exact() {
 
 #[test]
 fn timestamps_time_the_passes_alone() {
-    let Some(ctx) = context() else { return };
-    let Some((scene, p)) = prepared("teapot_ct/slices") else {
+    let Some((ctx, scene, p)) = teapot() else {
         return;
     };
     let r = renderer(&ctx, &p, Filter::Exact, false);
