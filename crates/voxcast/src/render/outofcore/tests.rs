@@ -51,6 +51,15 @@ fn out_of_core(
     (img, st)
 }
 
+/// The largest difference of any channel of any pixel.
+fn worst_diff(a: &Image, b: &Image) -> f32 {
+    a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
+        .fold(0f32, f32::max)
+}
+
 fn level0(budget: u64) -> OutOfCoreParams {
     OutOfCoreParams {
         budget,
@@ -232,12 +241,7 @@ fn packets_and_the_scalar_loop_march_bricks_to_the_same_pixels() {
             let (simd, s1) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
             p.simd = crate::render::Simd::Scalar;
             let (scalar, s2) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
-            let worst = simd
-                .pixels
-                .iter()
-                .zip(&scalar.pixels)
-                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-                .fold(0f32, f32::max);
+            let worst = worst_diff(&simd, &scalar);
             assert!(
                 worst < 1e-4,
                 "{:?} shading {shading}: {worst}",
@@ -266,12 +270,7 @@ fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_range
     let (again, s_again, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
     p.skip_empty = false;
     let (all, s_all, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
-    let worst = skip
-        .pixels
-        .iter()
-        .zip(&all.pixels)
-        .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-        .fold(0f32, f32::max);
+    let worst = worst_diff(&skip, &all);
     assert!(worst < 1e-4, "skipping changed a pixel by {worst}");
     assert_eq!(skip.pixels, again.pixels, "the warm frame differs");
     assert_eq!(s_skip.samples, s_again.samples);
