@@ -465,9 +465,8 @@ impl Timestamps {
     /// The summed pass time; `None` when a pair is out of order (a driver
     /// that does not keep its timestamps monotonic across a pass).
     fn seconds(&self, r: &GpuRenderer) -> Result<Option<f64>, GpuError> {
-        let bytes = read_back(&r.ctx.device, &self.read)?;
-        // A byte vector need not be 8-aligned: copy, not cast.
-        let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&bytes);
+        // Collected, not cast: the mapped bytes need not be 8-aligned.
+        let ticks: Vec<u64> = map_read(&r.ctx.device, &self.read, bytemuck::pod_collect_to_vec)?;
         let mut sum = 0u64;
         for pair in ticks.chunks_exact(2) {
             match pair[1].checked_sub(pair[0]) {
