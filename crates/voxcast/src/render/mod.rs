@@ -21,6 +21,7 @@ mod ray;
 pub mod rng;
 mod sample;
 pub mod shading;
+pub mod sortlast;
 pub mod stats;
 mod stochastic;
 mod surface;

@@ -95,6 +95,9 @@ pub struct MemorySource {
     levels: Vec<Level>,
     volumes: Vec<Volume>,
     name: String,
+    /// Every chunk's value range per level (x fastest), once
+    /// [`MemorySource::with_ranges`] has measured them.
+    ranges: Option<Vec<Vec<ChunkRange>>>,
 }
 
 impl MemorySource {
@@ -123,7 +126,51 @@ impl MemorySource {
             levels,
             volumes,
             name,
+            ranges: None,
         })
+    }
+
+    /// Measures every chunk's value range (one parallel pass over each
+    /// level), so that [`ChunkedSource::chunk_range`] answers `Range` —
+    /// as a store with a range sidecar does — instead of `Unknown`.
+    pub fn with_ranges(mut self) -> MemorySource {
+        use rayon::prelude::*;
+        let ranges = self
+            .levels
+            .iter()
+            .zip(&self.volumes)
+            .map(|(l, vol)| {
+                let counts = l.chunk_counts();
+                let n = counts.iter().product::<u64>();
+                (0..n)
+                    .into_par_iter()
+                    .map(|i| {
+                        let c = [
+                            i % counts[0],
+                            (i / counts[0]) % counts[1],
+                            i / (counts[0] * counts[1]),
+                        ];
+                        let (lo, hi) = l.chunk_box(c);
+                        let data = crop(vol, lo, hi);
+                        let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
+                        for k in 0..data.len() {
+                            let v = data.get(k);
+                            if !v.is_nan() {
+                                a = a.min(v);
+                                b = b.max(v);
+                            }
+                        }
+                        if a <= b {
+                            ChunkRange::Range(a, b)
+                        } else {
+                            ChunkRange::Fill(f32::NAN)
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        self.ranges = Some(ranges);
+        self
     }
 
     /// Level `l` as a volume.
@@ -142,8 +189,15 @@ impl ChunkedSource for MemorySource {
     fn levels(&self) -> &[Level] {
         &self.levels
     }
-    fn chunk_range(&self, _: usize, _: [u64; 3]) -> ChunkRange {
-        ChunkRange::Unknown
+    fn chunk_range(&self, level: usize, c: [u64; 3]) -> ChunkRange {
+        let Some(r) = self.ranges.as_ref().and_then(|r| r.get(level)) else {
+            return ChunkRange::Unknown;
+        };
+        let n = self.levels[level].chunk_counts();
+        if (0..3).any(|a| c[a] >= n[a]) {
+            return ChunkRange::Unknown;
+        }
+        r[(c[0] + n[0] * (c[1] + n[1] * c[2])) as usize]
     }
     fn read_chunk(&self, level: usize, c: [u64; 3]) -> Result<VoxelData> {
         let l = self

@@ -299,6 +299,26 @@ impl<'s> OutOfCore<'s> {
         }
     }
 
+    /// The store rendered.
+    pub fn source(&self) -> &'s dyn ChunkedSource {
+        self.source
+    }
+
+    /// The level a render through `cam` reads: the one asked for, else
+    /// [`choose_level`]'s.
+    pub fn level_for(&self, cam: &Camera) -> Result<usize> {
+        let levels = self.source.levels();
+        match self.ooc.level {
+            Some(l) if l >= levels.len() => Err(Error::invalid(format!(
+                "--level {l}: {} has levels 0…{}",
+                self.source.name(),
+                levels.len().saturating_sub(1)
+            ))),
+            Some(l) => Ok(l),
+            None => Ok(choose_level(levels, cam, self.ooc.lod_scale)),
+        }
+    }
+
     /// What the cache has done since it was made.
     pub fn cache_stats(&self) -> CacheStats {
         self.cache.stats()
@@ -314,6 +334,33 @@ impl<'s> OutOfCore<'s> {
         progress: &(dyn Fn(usize, usize) + Sync),
         cancel: &AtomicBool,
     ) -> Result<(Image, RenderStats, OutOfCoreStats)> {
+        let (part, rs, stats) =
+            self.render_part(tf, window, camera, params, None, progress, cancel)?;
+        Ok((
+            with_background(part, params.width, params.height, params.background),
+            rs,
+            stats,
+        ))
+    }
+
+    /// The premultiplied colour and opacity (linear RGBA, no background) of
+    /// the samples the bricks of `part` own — a box `[lo, hi)` of the
+    /// rendered level's chunk indices; `None`: all of them. Parts that tile
+    /// the level, composited with `over` in visibility order, give the
+    /// whole render (the sort-last renderer, [`crate::render::sortlast`]);
+    /// for that, early ray termination must be off (`params.ert = 1`), as
+    /// a part does not see the opacity in front of it.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_part(
+        &self,
+        tf: &TransferFunction,
+        window: [f32; 2],
+        camera: &CameraParams,
+        params: &RenderParams,
+        part: Option<ChunkBox>,
+        progress: &(dyn Fn(usize, usize) + Sync),
+        cancel: &AtomicBool,
+    ) -> Result<(Vec<[f32; 4]>, RenderStats, OutOfCoreStats)> {
         let (source, ooc) = (self.source, &self.ooc);
         let before = self.cache.stats();
         let read_before = source.bytes_read();
@@ -330,17 +377,7 @@ impl<'s> OutOfCore<'s> {
         let (w, h) = (params.width, params.height);
         let (lo, hi) = world_bounds(levels);
         let cam = Camera::fit(camera, lo, hi, w, h);
-        let lidx = match ooc.level {
-            Some(l) if l >= levels.len() => {
-                return Err(Error::invalid(format!(
-                    "--level {l}: {} has levels 0…{}",
-                    source.name(),
-                    levels.len() - 1
-                )))
-            }
-            Some(l) => l,
-            None => choose_level(levels, &cam, ooc.lod_scale),
-        };
+        let lidx = self.level_for(&cam)?;
         let level = &levels[lidx];
         let ty = source.scalar_type();
         let shading = params.shading.then(BlinnPhong::default);
@@ -373,33 +410,13 @@ impl<'s> OutOfCore<'s> {
             ),
         ));
         }
-        let mut window = window;
-        if window[0] == window[1] {
-            window = [window[0] - 0.5, window[0] + 0.5];
-        }
+        let window = widen(window);
         // What the store knows of each chunk, without reading it.
         let counts = level.chunk_counts();
         let cidx = |c: [u64; 3]| (c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize;
         let n_chunks = counts.iter().product::<u64>() as usize;
-        let ranges: Vec<ChunkRange> = (0..n_chunks)
-            .into_par_iter()
-            .map(|i| {
-                let i = i as u64;
-                let c = [
-                    i % counts[0],
-                    (i / counts[0]) % counts[1],
-                    i / (counts[0] * counts[1]),
-                ];
-                source.chunk_range(lidx, c)
-            })
-            .collect();
-        let transparent = |lo: f32, hi: f32| {
-            let (a, b) = (
-                (lo - window[0]) / (window[1] - window[0]),
-                (hi - window[0]) / (window[1] - window[0]),
-            );
-            b < 0.0 || tf.max_opacity_in(a.max(0.0), b.min(1.0)) <= 0.0
-        };
+        let ranges = chunk_ranges(source, lidx);
+        let transparent = |lo: f32, hi: f32| range_transparent(tf, window, lo, hi);
         // Whether values in `[lo, hi]` may show, with a table entry of margin
         // on each side (a value is classified by its nearest entry).
         let margin = 1.0 / (crate::transfer::LUT_SIZE - 1) as f32;
@@ -410,16 +427,22 @@ impl<'s> OutOfCore<'s> {
             );
             b >= 0.0 && tf.max_opacity_in(a.max(0.0), b.min(1.0)) > 0.0
         };
-        let known_empty = |r: &ChunkRange| match *r {
-            ChunkRange::Fill(v) => v.is_nan() || transparent(v, v),
-            ChunkRange::Range(a, b) => transparent(a, b),
-            ChunkRange::Unknown => false,
-        };
+        let known_empty = |r: &ChunkRange| known_empty(tf, window, r);
 
         // The plan: the bricks to march, in visibility order.
+        let inside =
+            |c: [u64; 3]| part.is_none_or(|(lo, hi)| (0..3).all(|a| c[a] >= lo[a] && c[a] < hi[a]));
         let mut stats = OutOfCoreStats {
             level: lidx,
-            bricks: n_chunks,
+            bricks: (0..n_chunks as u64)
+                .filter(|&i| {
+                    inside([
+                        i % counts[0],
+                        (i / counts[0]) % counts[1],
+                        i / (counts[0] * counts[1]),
+                    ])
+                })
+                .count(),
             ..Default::default()
         };
         let mut plan: Vec<(i64, Brick)> = Vec::new();
@@ -433,6 +456,9 @@ impl<'s> OutOfCore<'s> {
                 (i / counts[0]) % counts[1],
                 i / (counts[0] * counts[1]),
             ];
+            if !inside(c) {
+                continue;
+            }
             let (olo, ohi) = geo.own_box(c);
             let Some(rect) = screen_rect(&cam, to_world(olo), to_world(ohi), w, h) else {
                 stats.culled += 1;
@@ -646,20 +672,7 @@ impl<'s> OutOfCore<'s> {
         if let Some(e) = error {
             return Err(e);
         }
-        let bg = Vec3::from(params.background.map(srgb_to_linear));
-        let pixels = px
-            .par_iter()
-            .map(|p| {
-                let c = p.finish();
-                let rgb = c.truncate() + bg * (1.0 - c.w);
-                [rgb.x, rgb.y, rgb.z, c.w]
-            })
-            .collect();
-        let image = Image {
-            width: w,
-            height: h,
-            pixels,
-        };
+        let pixels = px.par_iter().map(|p| p.finish().to_array()).collect();
         stats.cache = cache.stats().since(&before);
         stats.bytes_read = source.bytes_read() - read_before;
         let rs = RenderStats {
@@ -673,7 +686,81 @@ impl<'s> OutOfCore<'s> {
             seconds: start.elapsed().as_secs_f64(),
             device_seconds: None,
         };
-        Ok((image, rs, stats))
+        Ok((pixels, rs, stats))
+    }
+}
+
+/// A box `[lo, hi)` of chunk indices of one level.
+pub type ChunkBox = ([u64; 3], [u64; 3]);
+
+/// The image of premultiplied `pixels` (linear RGBA, as
+/// [`OutOfCore::render_part`] gives them) over the sRGB `background`.
+pub fn with_background(
+    pixels: Vec<[f32; 4]>,
+    width: u32,
+    height: u32,
+    background: [f32; 3],
+) -> Image {
+    let bg = Vec3::from(background.map(srgb_to_linear));
+    let pixels = pixels
+        .into_par_iter()
+        .map(|[r, g, b, a]| {
+            let rgb = Vec3::new(r, g, b) + bg * (1.0 - a);
+            [rgb.x, rgb.y, rgb.z, a]
+        })
+        .collect();
+    Image {
+        width,
+        height,
+        pixels,
+    }
+}
+
+/// A window of one value widened to one unit around it (as the renderer
+/// classifies).
+pub(crate) fn widen(window: [f32; 2]) -> [f32; 2] {
+    if window[0] == window[1] {
+        [window[0] - 0.5, window[0] + 0.5]
+    } else {
+        window
+    }
+}
+
+/// What the store knows of every chunk of level `lidx` (x fastest), in
+/// parallel.
+pub(crate) fn chunk_ranges(source: &dyn ChunkedSource, lidx: usize) -> Vec<ChunkRange> {
+    let counts = source.levels()[lidx].chunk_counts();
+    let n = counts.iter().product::<u64>() as usize;
+    (0..n)
+        .into_par_iter()
+        .map(|i| {
+            let i = i as u64;
+            let c = [
+                i % counts[0],
+                (i / counts[0]) % counts[1],
+                i / (counts[0] * counts[1]),
+            ];
+            source.chunk_range(lidx, c)
+        })
+        .collect()
+}
+
+/// Whether every value in `[lo, hi]` is transparent under `tf` over the
+/// (widened) `window`.
+pub(crate) fn range_transparent(tf: &TransferFunction, window: [f32; 2], lo: f32, hi: f32) -> bool {
+    let (a, b) = (
+        (lo - window[0]) / (window[1] - window[0]),
+        (hi - window[0]) / (window[1] - window[0]),
+    );
+    b < 0.0 || tf.max_opacity_in(a.max(0.0), b.min(1.0)) <= 0.0
+}
+
+/// Whether a chunk is known to be transparent without reading it.
+pub(crate) fn known_empty(tf: &TransferFunction, window: [f32; 2], r: &ChunkRange) -> bool {
+    match *r {
+        ChunkRange::Fill(v) => v.is_nan() || range_transparent(tf, window, v, v),
+        ChunkRange::Range(a, b) => range_transparent(tf, window, a, b),
+        ChunkRange::Unknown => false,
     }
 }
 
