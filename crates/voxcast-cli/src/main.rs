@@ -12,6 +12,25 @@ fn main() {
     let cli = Cli::parse();
     // One command per process: no output may replace a file it read.
     voxcast::files::record_inputs();
+    // Started by mpirun: `render` is split over the processes.
+    #[cfg(feature = "mpi")]
+    let universe = cmd::mpi::start();
+    #[cfg(feature = "mpi")]
+    if let Some(world) = universe.as_ref().map(|u| u.world()) {
+        use mpi::topology::Communicator;
+        let result = match &cli.command {
+            Command::Render(a) => Some(cmd::mpi::render(a, &world)),
+            _ if world.size() == 1 => None,
+            _ => Some(Err(anyhow::anyhow!(
+                "under mpirun, voxcast runs `render` only (split over the processes); run other commands without mpirun"
+            ))),
+        };
+        match result {
+            Some(Ok(())) => return,
+            Some(Err(e)) => cmd::mpi::fail(&world, &e),
+            None => {}
+        }
+    }
     let result = match cli.command {
         Command::Render(a) => cmd::render::run(*a),
         Command::Bench(a) => cmd::bench::run(*a),

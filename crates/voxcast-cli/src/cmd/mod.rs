@@ -11,6 +11,8 @@ pub mod compare;
 pub mod convert;
 mod device;
 pub mod info;
+#[cfg(feature = "mpi")]
+pub mod mpi;
 pub mod presets;
 pub mod render;
 mod render_chunked;

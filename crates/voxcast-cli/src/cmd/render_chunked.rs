@@ -89,22 +89,16 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
     Ok(Some(Plan::OutOfCore(Box::new(store), ooc)))
 }
 
-/// Renders `store` out of core and writes the outputs `a` asks for.
-pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCoreParams) -> Result<()> {
-    if a.quality.is_some() {
-        bail!("--quality: not available out of core (the pilot renders the whole volume); give --step, or a --memory-budget the level fits in");
-    }
-    if !matches!(a.device, crate::args::DeviceArg::Cpu) {
-        bail!("--device: out of core, voxcast renders on the CPU; leave --device at cpu, or give a --memory-budget the level fits in");
-    }
-    let (mut outputs, out) = super::render::plan_outputs(a, scene)?;
-    let quiet = a.quiet;
-    // The finest level of at most 64 MiB stands in for the volume where
-    // the transfer function and the window need its values (auto,
-    // histograms): level 0 itself for a volume of that size, so the picture
-    // is the in-core one. It is freed before the render starts, so the
-    // budget holds during the render.
-    let t_load = Instant::now();
+/// The scene prepared from a stand-in for the store's volume, and the
+/// stand-in's level: the finest level of at most 64 MiB stands in where the
+/// transfer function and the window need the values (auto, histograms) —
+/// level 0 itself for a volume of that size, so the picture is the in-core
+/// one. Only the transfer function, the window and the geometry are kept;
+/// the stand-in is freed before the render starts, so the budget holds.
+pub fn prepare_from_proxy(
+    scene: &Scene,
+    store: &ZarrStore,
+) -> Result<(voxcast::scene::Prepared, usize)> {
     let levels = store.levels();
     let coarsest = store.finest_within(PROXY_BYTES).unwrap_or(levels.len() - 1);
     let proxy = store.read_level(coarsest)?;
@@ -116,14 +110,29 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
             prepared.window = r;
         }
     }
-    outputs.check()?;
-    // Only the transfer function and the window are kept.
     prepared.volume = voxcast::Volume::new(
         [1, 1, 1],
         glam::Vec3::ONE,
         glam::Vec3::ZERO,
         voxcast::VoxelData::U8(vec![0u8].into()),
     )?;
+    Ok((prepared, coarsest))
+}
+
+/// Renders `store` out of core and writes the outputs `a` asks for.
+pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCoreParams) -> Result<()> {
+    if a.quality.is_some() {
+        bail!("--quality: not available out of core (the pilot renders the whole volume); give --step, or a --memory-budget the level fits in");
+    }
+    if !matches!(a.device, crate::args::DeviceArg::Cpu) {
+        bail!("--device: out of core, voxcast renders on the CPU; leave --device at cpu, or give a --memory-budget the level fits in");
+    }
+    let (mut outputs, out) = super::render::plan_outputs(a, scene)?;
+    let quiet = a.quiet;
+    let t_load = Instant::now();
+    let levels = store.levels();
+    let (prepared, coarsest) = prepare_from_proxy(scene, store)?;
+    outputs.check()?;
     if prepared.geometry.is_some() {
         bail!("--geometry: opaque geometry is not rendered out of core; render without it, or give a --memory-budget the level fits in");
     }

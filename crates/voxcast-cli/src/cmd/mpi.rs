@@ -1,0 +1,295 @@
+//! `mpirun -np N voxcast render …` (cargo feature `mpi`): sort-last
+//! parallel rendering ([`voxcast::render::sortlast`]) over MPI. Every
+//! process opens the input (a Zarr store is read chunk by chunk, so each
+//! reads only its part and the ghost layer around it; any other input is
+//! read whole by each), renders its part with the out-of-core ray caster,
+//! and the parts are composited by radix-k; process 0 writes the outputs.
+//! An error on any process ends all of them (`MPI_Abort`) with its message.
+
+use crate::args::{DeviceArg, RenderArgs};
+use anyhow::{bail, Context, Result};
+use mpi::topology::{Communicator, SimpleCommunicator};
+use mpi::traits::{Destination, Source};
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+use voxcast::io::zarr::ZarrStore;
+use voxcast::render::outofcore::{self, human_bytes, OutOfCore, OutOfCoreParams};
+use voxcast::render::sortlast::{self, Exchange};
+use voxcast::volume::{ChunkedSource, MemorySource};
+
+/// Chunk edge a volume read whole is cut into for the split.
+const MEMORY_CHUNK: u32 = 32;
+
+/// MPI, when this process was started by an MPI launcher (`mpirun`,
+/// `srun`); `None` for a plain start, which then runs as always.
+pub fn start() -> Option<mpi::environment::Universe> {
+    let launched = ["OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_RANK", "PMI_SIZE"]
+        .iter()
+        .any(|v| std::env::var_os(v).is_some());
+    if !launched {
+        return None;
+    }
+    mpi::initialize_with_threading(mpi::Threading::Funneled).map(|(u, _)| u)
+}
+
+/// Reports `e` naming the process, and ends every process (`MPI_Abort`)
+/// where there are several: the others may be waiting on this one.
+pub fn fail(world: &SimpleCommunicator, e: &anyhow::Error) -> ! {
+    use std::io::Write;
+    let (rank, size) = (world.rank(), world.size());
+    // One write, so the processes' lines do not interleave.
+    let line = format!("error (process {rank} of {size}): {e:#}\n");
+    let _ = std::io::stderr().write_all(line.as_bytes());
+    if size > 1 {
+        world.abort(1)
+    }
+    std::process::exit(1)
+}
+
+/// The compositing messages over an MPI communicator.
+struct MpiExchange<'w> {
+    world: &'w SimpleCommunicator,
+}
+
+impl Exchange for MpiExchange<'_> {
+    fn rank(&self) -> usize {
+        self.world.rank() as usize
+    }
+    fn size(&self) -> usize {
+        self.world.size() as usize
+    }
+    fn exchange(
+        &self,
+        tag: u32,
+        peers: &[usize],
+        out: Vec<Vec<f32>>,
+    ) -> voxcast::Result<Vec<Vec<f32>>> {
+        let me = self.rank();
+        let tag = tag as i32;
+        Ok(mpi::request::scope(|scope| {
+            // Post every send, then receive: no order of the group can
+            // deadlock.
+            let sends: Vec<_> = peers
+                .iter()
+                .zip(&out)
+                .filter(|(p, _)| **p != me)
+                .map(|(&p, v)| {
+                    self.world
+                        .process_at_rank(p as i32)
+                        .immediate_send_with_tag(scope, &v[..], tag)
+                })
+                .collect();
+            let got = peers
+                .iter()
+                .map(|&p| {
+                    if p == me {
+                        Vec::new()
+                    } else {
+                        self.world
+                            .process_at_rank(p as i32)
+                            .receive_vec_with_tag::<f32>(tag)
+                            .0
+                    }
+                })
+                .collect();
+            for s in sends {
+                s.wait();
+            }
+            got
+        }))
+    }
+    fn gather(&self, tag: u32, data: Vec<f32>) -> voxcast::Result<Option<Vec<Vec<f32>>>> {
+        let tag = tag as i32;
+        if self.rank() != 0 {
+            self.world.process_at_rank(0).send_with_tag(&data[..], tag);
+            return Ok(None);
+        }
+        let mut all = vec![data];
+        for p in 1..self.size() {
+            all.push(
+                self.world
+                    .process_at_rank(p as i32)
+                    .receive_vec_with_tag::<f32>(tag)
+                    .0,
+            );
+        }
+        Ok(Some(all))
+    }
+}
+
+/// `voxcast render` on every process of `world`.
+pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
+    let ex = MpiExchange { world };
+    let (rank, n) = (ex.rank(), ex.size());
+    let lead = rank == 0 && !a.quiet;
+    let scene = a.scene()?;
+    if a.quality.is_some() {
+        bail!("--quality: not available under MPI (the pilot renders the whole volume on one process); give --step");
+    }
+    if !matches!(a.device, DeviceArg::Cpu) {
+        bail!("--device: under MPI, voxcast renders on the CPU of each process; leave --device at cpu");
+    }
+    sortlast::check_params(&scene.render)?;
+    // Process 0 writes; it checks every output before any work.
+    let mut planned = if rank == 0 {
+        Some(super::render::plan_outputs(a, &scene)?)
+    } else {
+        None
+    };
+    let t_load = Instant::now();
+    let path = Path::new(&scene.input.path);
+    let zarr =
+        !scene.input.path.starts_with(voxcast::builtin::PREFIX) && voxcast::io::zarr::is_zarr(path);
+    // The processes of one machine share its memory.
+    let local: u64 = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1)
+        .max(1);
+    let budget = a
+        .memory_budget
+        .unwrap_or_else(|| outofcore::default_budget() / local);
+    let (source, prepared): (Box<dyn ChunkedSource>, _) = if zarr {
+        let store = ZarrStore::open_with(path, &scene.input.options)?;
+        let (prepared, _) = super::render_chunked::prepare_from_proxy(&scene, &store)?;
+        (Box::new(store), prepared)
+    } else {
+        let prepared = scene.prepare()?;
+        let src = MemorySource::new(prepared.volume.clone(), 0, [MEMORY_CHUNK; 3])?.with_ranges();
+        (Box::new(src), prepared)
+    };
+    if let Some((outputs, _)) = planned.as_mut() {
+        outputs.check()?;
+    }
+    if prepared.geometry.is_some() {
+        bail!("--geometry: opaque geometry is not rendered under MPI");
+    }
+    let ooc = OutOfCore::new(
+        source.as_ref(),
+        OutOfCoreParams {
+            budget,
+            level: scene.input.options.level,
+            ..Default::default()
+        },
+    );
+    let levels = source.levels();
+    if lead {
+        let d = levels[0].dims;
+        eprintln!(
+            "opened {} on {n} process{} — {}×{}×{} {} ({:.2} s){}",
+            scene.input.path,
+            if n == 1 { "" } else { "es" },
+            d[0],
+            d[1],
+            d[2],
+            source.scalar_type(),
+            t_load.elapsed().as_secs_f64(),
+            if zarr {
+                ", each reading its part's chunks"
+            } else {
+                ", read whole by each"
+            }
+        );
+        if scene.render.ert < 1.0 {
+            eprintln!("note: early ray termination is off under MPI (a process does not see the opacity in front of its part); the picture is the one-process render's with --ert 1");
+        }
+    }
+    let r = sortlast::render(
+        &ex,
+        &ooc,
+        &prepared.tf,
+        prepared.window,
+        &scene.camera,
+        &scene.render,
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )
+    .with_context(|| format!("process {rank} of {n}"))?;
+    // Every process's figures, to process 0.
+    let s = &r.sort_last;
+    let mine = vec![
+        s.render_seconds as f32,
+        s.composite.seconds as f32,
+        s.composite.bytes_sent as f32,
+        s.weight as f32,
+        r.stats.samples as f32,
+        s.out_of_core.bytes_read as f32,
+    ];
+    let all = ex.gather(1000, mine)?;
+    let (Some(image), Some(all), Some((mut outputs, out))) = (r.image, all, planned) else {
+        return Ok(());
+    };
+    let pixels = (image.width * image.height) as f64;
+    let per_rank: Vec<serde_json::Value> = all
+        .iter()
+        .enumerate()
+        .map(|(p, v)| {
+            serde_json::json!({
+                "rank": p,
+                "render_seconds": v[0],
+                "composite_seconds": v[1],
+                "bytes_sent": v[2],
+                "visible_chunks": v[3],
+                "samples": v[4],
+                "bytes_read": v[5],
+            })
+        })
+        .collect();
+    let sent: f64 = all.iter().map(|v| v[2] as f64).sum();
+    let max = |i: usize| all.iter().map(|v| v[i] as f64).fold(0.0, f64::max);
+    let samples: f64 = all.iter().map(|v| v[4] as f64).sum();
+    let mut stats = r.stats;
+    stats.samples = samples as u64;
+    stats.interpolations = samples as u64;
+    stats.seconds = max(0) + max(1);
+    let mut extra = serde_json::Map::new();
+    extra.insert(
+        "device".into(),
+        format!("cpu, sort-last over {n} MPI processes").into(),
+    );
+    extra.insert(
+        "mpi".into(),
+        serde_json::json!({
+            "processes": n,
+            "rounds": sortlast::rounds(n),
+            "level": s.out_of_core.level,
+            "bytes_per_pixel": sent / pixels,
+            "render_seconds_max": max(0),
+            "composite_seconds_max": max(1),
+            "per_process": per_rank,
+        }),
+    );
+    super::render::write_outputs(
+        a,
+        &mut outputs,
+        &out,
+        &image,
+        &stats,
+        extra,
+        &scene,
+        &prepared,
+    )?;
+    outputs.commit()?;
+    if !a.quiet {
+        let slowest = max(0);
+        let mean = all.iter().map(|v| v[0] as f64).sum::<f64>() / n as f64;
+        eprintln!(
+            "wrote {} ({}×{}) on {n} process{}: render {:.3} s (slowest; mean {:.3} s, balance {:.0} %), compositing {:.3} s in {} rounds of radix-k {:?}, {:.1} bytes per pixel sent, {} read; {} samples",
+            out.display(),
+            image.width,
+            image.height,
+            if n == 1 { "" } else { "es" },
+            slowest,
+            mean,
+            if slowest > 0.0 { 100.0 * mean / slowest } else { 100.0 },
+            max(1),
+            sortlast::rounds(n).len(),
+            sortlast::rounds(n),
+            sent / pixels,
+            human_bytes(all.iter().map(|v| v[5] as u64).sum()),
+            samples as u64,
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,151 @@
+//! `mpirun -np N voxcast render` (cargo feature `mpi`): the composited
+//! picture against one process, on a real volume, in core and from a
+//! chunked store, with the camera on either side of the cuts; and a
+//! failure on one process ends all of them, never a hang.
+#![cfg(feature = "mpi")]
+
+mod common;
+use common::{stderr, voxcast};
+use std::path::Path;
+use std::process::{Command, Output};
+
+const TEAPOT: &str = "../../../shared/data/teapot_ct/slices";
+
+/// `mpirun -np N voxcast ARGS` in `cwd`, killed after two minutes (a hang
+/// fails the test instead of stalling it).
+fn mpirun(n: usize, args: &[&str], cwd: &Path) -> Output {
+    Command::new("timeout")
+        .args([
+            "120",
+            "mpirun",
+            "--allow-run-as-root",
+            "--oversubscribe",
+            "-np",
+        ])
+        .arg(n.to_string())
+        .arg(env!("CARGO_BIN_EXE_voxcast"))
+        .args(args)
+        .current_dir(cwd)
+        .output()
+        .expect("run mpirun (Debian: openmpi-bin)")
+}
+
+fn psnr(a: &str, b: &str, cwd: &Path) -> f64 {
+    let o = voxcast(&["compare", a, b, "--json"], cwd);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    // Identical images have no PSNR (infinite).
+    j["psnr_db"].as_f64().unwrap_or(f64::INFINITY)
+}
+
+fn teapot() -> Option<String> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join(TEAPOT);
+    if p.is_dir() {
+        Some(p.to_string_lossy().into_owned())
+    } else {
+        assert!(!common::in_ci(), "{} is missing", p.display());
+        eprintln!("skipped: {} is missing", p.display());
+        None
+    }
+}
+
+#[test]
+fn three_processes_give_the_one_process_picture_from_either_side() {
+    let Some(teapot) = teapot() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // In core (each process reads the slices) and from a chunked store
+    // (each reads its part's chunks and the ghost layer), shaded or not,
+    // from in front of and behind every cut.
+    let o = voxcast(&["convert", &teapot, "-o", "t.zarr", "--chunk", "32"], d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (input, az, el, shaded) in [
+        (teapot.as_str(), "30", "20", false),
+        (teapot.as_str(), "210", "-40", true),
+        ("t.zarr", "120", "60", true),
+        ("t.zarr", "300", "-15", false),
+    ] {
+        let mut args = vec![
+            "render",
+            input,
+            "--size",
+            "160x128",
+            "--azimuth",
+            az,
+            "--elevation",
+            el,
+        ];
+        if shaded {
+            args.extend(["--shading", "on"]);
+        }
+        let mut one = args.clone();
+        one.extend(["-o", "one.png", "--ert", "1", "--quiet"]);
+        // A store is rendered by one process the way each part is: out
+        // of core, its transfer function from the same stand-in level.
+        if input.ends_with(".zarr") {
+            one.push("--out-of-core");
+        }
+        let o = voxcast(&one, d);
+        assert!(o.status.success(), "{}", stderr(&o));
+        for n in [1, 3] {
+            let mut many = args.clone();
+            many.extend(["-o", "many.png", "--stats-json", "many.json"]);
+            let o = mpirun(n, &many, d);
+            let said = stderr(&o);
+            assert!(o.status.success(), "{n} processes, {args:?}: {said}");
+            assert!(said.contains("early ray termination is off"), "{said}");
+            let db = psnr("one.png", "many.png", d);
+            assert!(db >= 60.0, "{n} processes, {args:?}: {db:.1} dB");
+            let j: serde_json::Value =
+                serde_json::from_str(&std::fs::read_to_string(d.join("many.json")).unwrap())
+                    .unwrap();
+            assert_eq!(j["mpi"]["processes"], n);
+            assert_eq!(j["mpi"]["per_process"].as_array().unwrap().len(), n);
+            let bpp = j["mpi"]["bytes_per_pixel"].as_f64().unwrap();
+            // Direct send among three: each sends 2/3 of its image (16
+            // bytes a pixel) and its third to process 0.
+            let want = if n == 1 {
+                0.0
+            } else {
+                16.0 * (2.0 + 2.0 / 3.0)
+            };
+            assert!((bpp - want).abs() < 0.5, "{n}: {bpp} bytes per pixel");
+        }
+    }
+}
+
+#[test]
+fn a_failure_on_one_process_ends_all_of_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Only process 0 writes: its output folder is missing, while the
+    // others render and wait for it.
+    let o = mpirun(
+        3,
+        &[
+            "render",
+            "builtin:demo",
+            "--size",
+            "64x64",
+            "-o",
+            "no/such/folder/x.png",
+        ],
+        d,
+    );
+    let said = stderr(&o);
+    assert_ne!(o.status.code(), Some(124), "mpirun hung: {said}");
+    assert!(!o.status.success(), "{said}");
+    assert!(
+        said.contains("process 0 of 3") && said.contains("x.png"),
+        "{said}"
+    );
+    assert!(!said.contains("panicked"), "{said}");
+    // A method that needs the whole ray is refused by name.
+    let o = mpirun(2, &["render", "--method", "adaptive", "-o", "a.png"], d);
+    let said = stderr(&o);
+    assert!(
+        !o.status.success() && said.contains("method adaptive"),
+        "{said}"
+    );
+    assert!(!d.join("a.png").exists());
+}
