@@ -9,7 +9,7 @@
 use crate::args::{DeviceArg, RenderArgs};
 use anyhow::{bail, Context, Result};
 use mpi::topology::{Communicator, SimpleCommunicator};
-use mpi::traits::{Destination, Source};
+use mpi::traits::{CommunicatorCollectives, Destination, Source};
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -30,7 +30,25 @@ pub fn start() -> Option<mpi::environment::Universe> {
     if !launched {
         return None;
     }
+    // The processes of one machine share its cores: each takes its share
+    // of threads, unless RAYON_NUM_THREADS says otherwise.
+    if std::env::var_os("RAYON_NUM_THREADS").is_none() {
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = (cores / local_processes() as usize).max(1);
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build_global();
+    }
     mpi::initialize_with_threading(mpi::Threading::Funneled).map(|(u, _)| u)
+}
+
+/// The processes on this machine (Open MPI says; 1 where unknown).
+fn local_processes() -> u64 {
+    std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(1u64)
+        .max(1)
 }
 
 /// Reports `e` naming the process, and ends every process (`MPI_Abort`)
@@ -99,6 +117,10 @@ impl Exchange for MpiExchange<'_> {
             got
         }))
     }
+    fn barrier(&self) -> voxcast::Result<()> {
+        self.world.barrier();
+        Ok(())
+    }
     fn gather(&self, tag: u32, data: Vec<f32>) -> voxcast::Result<Option<Vec<Vec<f32>>>> {
         let tag = tag as i32;
         if self.rank() != 0 {
@@ -142,14 +164,9 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     let zarr =
         !scene.input.path.starts_with(voxcast::builtin::PREFIX) && voxcast::io::zarr::is_zarr(path);
     // The processes of one machine share its memory.
-    let local: u64 = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(1)
-        .max(1);
     let budget = a
         .memory_budget
-        .unwrap_or_else(|| outofcore::default_budget() / local);
+        .unwrap_or_else(|| outofcore::default_budget() / local_processes());
     let (source, prepared): (Box<dyn ChunkedSource>, _) = if zarr {
         let store = ZarrStore::open_with(path, &scene.input.options)?;
         let (prepared, _) = super::render_chunked::prepare_from_proxy(&scene, &store)?;
@@ -215,6 +232,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
         s.weight as f32,
         r.stats.samples as f32,
         s.out_of_core.bytes_read as f32,
+        s.wait_seconds as f32,
     ];
     let all = ex.gather(1000, mine)?;
     let (Some(image), Some(all), Some((mut outputs, out))) = (r.image, all, planned) else {
@@ -233,6 +251,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
                 "visible_chunks": v[3],
                 "samples": v[4],
                 "bytes_read": v[5],
+                "wait_seconds": v[6],
             })
         })
         .collect();

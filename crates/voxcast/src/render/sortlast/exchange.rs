@@ -3,7 +3,7 @@
 
 use crate::error::{Error, Result};
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
-use std::sync::Mutex;
+use std::sync::{Arc, Barrier, Mutex};
 use std::time::Duration;
 
 /// The messages compositing needs. Every process calls the same methods in
@@ -20,6 +20,9 @@ pub trait Exchange {
     /// Process 0 gets every process's `data`, in rank order (its own
     /// included); the others get `None`.
     fn gather(&self, tag: u32, data: Vec<f32>) -> Result<Option<Vec<Vec<f32>>>>;
+    /// Returns when every process has called it (so that compositing is
+    /// timed apart from waiting for the slowest render).
+    fn barrier(&self) -> Result<()>;
 }
 
 /// One message: sender, tag, values.
@@ -35,12 +38,14 @@ pub struct ThreadExchange {
     /// Messages that came before they were asked for.
     early: Mutex<Vec<Message>>,
     timeout: Duration,
+    all: Arc<Barrier>,
 }
 
 impl ThreadExchange {
     /// `n` connected processes, one for each thread.
     pub fn group(n: usize) -> Vec<ThreadExchange> {
         let (tx, rx): (Vec<_>, Vec<_>) = (0..n).map(|_| channel()).unzip();
+        let all = Arc::new(Barrier::new(n));
         rx.into_iter()
             .enumerate()
             .map(|(rank, from)| ThreadExchange {
@@ -49,6 +54,7 @@ impl ThreadExchange {
                 from,
                 early: Mutex::new(Vec::new()),
                 timeout: Duration::from_secs(60),
+                all: all.clone(),
             })
             .collect()
     }
@@ -122,5 +128,9 @@ impl Exchange for ThreadExchange {
             all.push(self.receive(p, tag)?);
         }
         Ok(Some(all))
+    }
+    fn barrier(&self) -> Result<()> {
+        self.all.wait();
+        Ok(())
     }
 }

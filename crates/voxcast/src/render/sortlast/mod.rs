@@ -339,60 +339,57 @@ pub fn composite(
         rounds: d.rounds.len(),
         ..Default::default()
     };
-    // The piece of the image held, and its pixels.
+    // The piece of the image held (pixels `[lo, hi)`, four values each).
     let (mut lo, mut hi) = (0usize, pixels);
-    let mut held = partial;
+    let mut held: Vec<f32> = partial.into_flattened();
     for (r, &k) in d.rounds.iter().enumerate() {
         let stride: usize = d.rounds[..r].iter().product();
         let (node, me) = d.group_node(rank, r);
         let base = rank - me * stride;
         let peers: Vec<usize> = (0..k).map(|j| base + j * stride).collect();
         // Send piece j to member j; keep our own.
-        let mut out = Vec::with_capacity(k);
-        for j in 0..k {
-            let (a, b) = piece(lo, hi, j, k);
-            if j == me {
-                out.push(Vec::new());
-            } else {
-                let v = flat(&held[a - lo..b - lo]);
-                stats.bytes_sent += 4 * v.len() as u64;
-                out.push(v);
-            }
-        }
+        let out: Vec<Vec<f32>> = (0..k)
+            .map(|j| {
+                if j == me {
+                    return Vec::new();
+                }
+                let (a, b) = piece(lo, hi, j, k);
+                stats.bytes_sent += 16 * (b - a) as u64;
+                held[4 * (a - lo)..4 * (b - lo)].to_vec()
+            })
+            .collect();
         let got = ex.exchange(r as u32, &peers, out)?;
         let (a, b) = piece(lo, hi, me, k);
-        let mut mine = Some(held[a - lo..b - lo].to_vec());
         // Over, nearest child first.
-        let mut acc: Option<Vec<[f32; 4]>> = None;
-        for child in d.order(node, view) {
-            let layer = if child == me {
-                mine.take().unwrap_or_default()
+        let mut acc: Vec<f32> = Vec::new();
+        for (n, child) in d.order(node, view).into_iter().enumerate() {
+            let layer: &[f32] = if child == me {
+                &held[4 * (a - lo)..4 * (b - lo)]
             } else {
-                let v = &got[child];
-                if v.len() != 4 * (b - a) {
-                    return Err(Error::invalid(format!(
-                        "sort-last: process {} sent {} values in round {r}, expected {}",
-                        peers[child],
-                        v.len(),
-                        4 * (b - a)
-                    )));
-                }
-                unflat(v)
+                &got[child]
             };
-            match acc.as_mut() {
-                None => acc = Some(layer),
-                Some(front) => over(front, &layer),
+            if layer.len() != 4 * (b - a) {
+                return Err(Error::invalid(format!(
+                    "sort-last: process {} sent {} values in round {r}, expected {}",
+                    peers[child],
+                    layer.len(),
+                    4 * (b - a)
+                )));
+            }
+            if n == 0 {
+                acc = layer.to_vec();
+            } else {
+                over(&mut acc, layer);
             }
         }
-        held = acc.unwrap_or_default();
+        held = acc;
         (lo, hi) = (a, b);
     }
     debug_assert_eq!((lo, hi), final_range(d, rank, pixels));
-    let v = flat(&held);
     if rank != 0 {
-        stats.bytes_sent += 4 * v.len() as u64;
+        stats.bytes_sent += 4 * held.len() as u64;
     }
-    let all = ex.gather(d.rounds.len() as u32, v)?;
+    let all = ex.gather(d.rounds.len() as u32, held)?;
     let image = all
         .map(|parts| {
             let mut img = vec![[0.0f32; 4]; pixels];
@@ -405,7 +402,7 @@ pub fn composite(
                         4 * (b - a)
                     )));
                 }
-                img[a..b].copy_from_slice(&unflat(data));
+                img[a..b].as_flattened_mut().copy_from_slice(data);
             }
             Ok(img)
         })
@@ -414,24 +411,15 @@ pub fn composite(
     Ok((image, stats))
 }
 
-/// `front` over `back`, premultiplied, in place of `front`.
-fn over(front: &mut [[f32; 4]], back: &[[f32; 4]]) {
-    for (f, b) in front.iter_mut().zip(back) {
+/// `front` over `back` (premultiplied RGBA, four values a pixel), in place
+/// of `front`.
+fn over(front: &mut [f32], back: &[f32]) {
+    for (f, b) in front.chunks_exact_mut(4).zip(back.chunks_exact(4)) {
         let t = 1.0 - f[3];
         for c in 0..4 {
             f[c] += t * b[c];
         }
     }
-}
-
-fn flat(p: &[[f32; 4]]) -> Vec<f32> {
-    p.iter().flatten().copied().collect()
-}
-
-fn unflat(v: &[f32]) -> Vec<[f32; 4]> {
-    v.chunks_exact(4)
-        .map(|c| [c[0], c[1], c[2], c[3]])
-        .collect()
 }
 
 /// One process's figures of a sort-last render.
@@ -446,6 +434,9 @@ pub struct SortLastStats {
     pub weight: u64,
     /// Seconds rendering its part.
     pub render_seconds: f64,
+    /// Seconds waiting, after its render, for every process to finish
+    /// theirs (load imbalance).
+    pub wait_seconds: f64,
     pub composite: CompositeStats,
     pub out_of_core: OutOfCoreStats,
 }
@@ -531,6 +522,9 @@ pub fn render(
         ooc.render_part(tf, window, camera, &params, Some(part), progress, cancel)?;
     let render_seconds = t.elapsed().as_secs_f64();
     let view = View::new(&cam, level);
+    let t = Instant::now();
+    ex.barrier()?;
+    let wait_seconds = t.elapsed().as_secs_f64();
     let (image, cs) = composite(ex, &d, &view, pixels)?;
     let image = image
         .map(|p| outofcore::with_background(p, params.width, params.height, params.background));
@@ -543,6 +537,7 @@ pub fn render(
             part,
             weight: d.weights[rank],
             render_seconds,
+            wait_seconds,
             composite: cs,
             out_of_core: oo,
         },
