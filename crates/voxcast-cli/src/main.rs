@@ -20,9 +20,10 @@ fn main() {
         use mpi::topology::Communicator;
         let result = match &cli.command {
             Command::Render(a) => Some(cmd::mpi::render(a, &world)),
+            Command::Animate(a) => Some(cmd::mpi::animate(a, &world)),
             _ if world.size() == 1 => None,
             _ => Some(Err(anyhow::anyhow!(
-                "under mpirun, voxcast runs `render` only (split over the processes); run other commands without mpirun"
+                "under mpirun, voxcast runs `render` (the volume split over the processes) and `animate` (the frames spread over them) only; run other commands without mpirun"
             ))),
         };
         match result {

@@ -149,3 +149,45 @@ fn a_failure_on_one_process_ends_all_of_them() {
     );
     assert!(!d.join("a.png").exists());
 }
+
+#[test]
+fn animate_spreads_the_frames_and_writes_the_one_process_frames() {
+    let smv =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fds_room/room_smoke.smv");
+    if !smv.is_file() {
+        assert!(!common::in_ci(), "{} is missing", smv.display());
+        return;
+    }
+    let smv = smv.to_string_lossy().into_owned();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = ["animate", &smv, "--size", "64x48", "--frames", "0..7"];
+    let mut one = args.to_vec();
+    one.extend(["-o", "one/", "-q"]);
+    let o = voxcast(&one, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut many = args.to_vec();
+    // Any method: each process renders whole frames.
+    many.extend(["-o", "many/", "--stats-json", "s.json"]);
+    let o = mpirun(3, &many, d);
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(said.contains("frames spread over the processes"), "{said}");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("s.json")).unwrap()).unwrap();
+    let frames: Vec<u64> = j
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["frame"].as_u64().unwrap())
+        .collect();
+    assert_eq!(frames, (0..7).collect::<Vec<u64>>(), "in order");
+    for k in 0..7 {
+        let name = format!("frame_{k:05}.png");
+        let (a, b) = (
+            std::fs::read(d.join("one").join(&name)).unwrap(),
+            std::fs::read(d.join("many").join(&name)).unwrap(),
+        );
+        assert!(a == b, "{name} differs");
+    }
+}

@@ -9,6 +9,8 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde::Serialize;
 use std::io::{IsTerminal, Write};
 use std::path::PathBuf;
+use voxcast::io::series::Series;
+use voxcast::scene::Scene;
 
 #[derive(Serialize)]
 struct FrameRecord {
@@ -42,13 +44,48 @@ fn find_ffmpeg() -> Option<PathBuf> {
         .find(|p| p.is_file())
 }
 
+/// Hands each rendered frame (its index, time, image and counts) to the
+/// output, in order.
+pub type Emit<'a> =
+    dyn FnMut(usize, f64, &voxcast::Image, &voxcast::RenderStats) -> Result<()> + 'a;
+
+/// Renders `frames` of `series` with `scene`, in order, handing each to
+/// `emit`.
+pub type Frames<'a> = dyn FnMut(&Scene, &Series, &[usize], &mut Emit<'_>) -> Result<()> + 'a;
+
 pub fn run(a: AnimateArgs) -> Result<()> {
+    run_with(&a, &mut |scene, series, frames, emit| {
+        for &i in frames {
+            let v = series.load(i, &scene.input.options)?;
+            let time = v.time.unwrap_or(i as f64);
+            let prepared = scene.prepare_with(v)?;
+            let (image, stats) = scene.render(&prepared, &|_, _| {})?;
+            emit(i, time, &image, &stats)?;
+        }
+        Ok(())
+    })
+}
+
+/// The scene, the series and the frames `a` selects, with the transfer
+/// function fixed over the series (as [`run_with`] makes them).
+#[cfg(feature = "mpi")]
+pub fn plan(a: &AnimateArgs) -> Result<(Scene, Series, Vec<usize>)> {
+    let (scene, series) = scene_and_series(&a.scene, a.method.as_deref())?;
+    let frames = select(a.frames.as_deref(), a.every, series.len())?;
+    let scene = fix_transfer(&scene, &series, *frames.last().expect("non-empty"))?;
+    Ok((scene, series, frames))
+}
+
+/// `voxcast animate` with the frames rendered by `render` (here, or spread
+/// over MPI processes).
+pub fn run_with(a: &AnimateArgs, render: &mut Frames<'_>) -> Result<()> {
     let (scene, series) = scene_and_series(&a.scene, a.method.as_deref())?;
     if !(a.fps.is_finite() && a.fps > 0.0 && a.fps <= 100.0) {
         bail!("--fps {}: expected 0 < fps ≤ 100", a.fps);
     }
     let frames = select(a.frames.as_deref(), a.every, series.len())?;
     let out = &a.output;
+    let a = &a;
     let ext = out
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase())
@@ -157,12 +194,8 @@ pub fn run(a: AnimateArgs) -> Result<()> {
         bar.set_draw_target(ProgressDrawTarget::stderr());
     }
     let mut records = Vec::with_capacity(frames.len());
-    let result = (|| -> Result<()> {
-        for &i in &frames {
-            let v = series.load(i, &scene.input.options)?;
-            let time = v.time.unwrap_or(i as f64);
-            let prepared = scene.prepare_with(v)?;
-            let (image, stats) = scene.render(&prepared, &|_, _| {})?;
+    let result = render(&scene, &series, &frames, &mut |i, time, image, stats| {
+        {
             let rgb = image.to_srgb8();
             match &mut sink {
                 Sink::Gif { enc, delay } => {
@@ -200,7 +233,7 @@ pub fn run(a: AnimateArgs) -> Result<()> {
             ));
         }
         Ok(())
-    })();
+    });
     bar.finish_and_clear();
     let finish = match sink {
         Sink::Gif { enc, .. } => result.and_then(|_| {

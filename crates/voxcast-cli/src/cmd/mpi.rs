@@ -4,9 +4,11 @@
 //! reads only its part and the ghost layer around it; any other input is
 //! read whole by each), renders its part with the out-of-core ray caster,
 //! and the parts are composited by radix-k; process 0 writes the outputs.
+//! `animate` spreads the frames over the processes instead: each renders
+//! whole frames, with any method, and process 0 writes them in order.
 //! An error on any process ends all of them (`MPI_Abort`) with its message.
 
-use crate::args::{DeviceArg, RenderArgs};
+use crate::args::{AnimateArgs, DeviceArg, RenderArgs};
 use anyhow::{bail, Context, Result};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{CommunicatorCollectives, Destination, Source};
@@ -308,6 +310,111 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
             sent / pixels,
             human_bytes(all.iter().map(|v| v[5] as u64).sum()),
             samples as u64,
+        );
+    }
+    Ok(())
+}
+
+/// Tags of a frame's pixels and figures sent to process 0.
+const FRAME_PIXELS: i32 = 10;
+const FRAME_FIGURES: i32 = 11;
+
+/// `voxcast animate` on every process of `world`: process `p` renders the
+/// frames at positions `p, p + N, …` of the selection, whole and with any
+/// method — a frame needs no more memory than on one process — and sends
+/// them to process 0, which writes them in order as they come. Spreading
+/// the frames needs no compositing and no restriction on the method, so it
+/// is what `animate` does under MPI; a single frame too large for one
+/// process is a job for `render`, one frame at a time.
+pub fn animate(a: &AnimateArgs, world: &SimpleCommunicator) -> Result<()> {
+    let (rank, n) = (world.rank() as usize, world.size() as usize);
+    let render_one = |scene: &voxcast::scene::Scene,
+                      series: &voxcast::io::series::Series,
+                      i: usize|
+     -> Result<(f64, voxcast::Image, voxcast::RenderStats)> {
+        let v = series.load(i, &scene.input.options)?;
+        let time = v.time.unwrap_or(i as f64);
+        let prepared = scene.prepare_with(v)?;
+        let (image, stats) = scene.render(&prepared, &|_, _| {})?;
+        Ok((time, image, stats))
+    };
+    if rank != 0 {
+        let (scene, series, frames) = super::animate::plan(a)?;
+        for (pos, &i) in frames.iter().enumerate() {
+            if pos % n != rank {
+                continue;
+            }
+            let (time, image, stats) =
+                render_one(&scene, &series, i).with_context(|| format!("frame {i}"))?;
+            let to = world.process_at_rank(0);
+            to.send_with_tag(image.pixels.as_flattened(), FRAME_PIXELS);
+            let figures = [
+                time,
+                stats.seconds,
+                stats.rays as f64,
+                stats.samples as f64,
+                stats.interpolations as f64,
+            ];
+            to.send_with_tag(&figures[..], FRAME_FIGURES);
+        }
+        return Ok(());
+    }
+    let start = Instant::now();
+    let mut busy = vec![0.0f64; n];
+    super::animate::run_with(a, &mut |scene, series, frames, emit| {
+        if !a.quiet {
+            eprintln!(
+                "animating {} frames on {n} processes: frames spread over the processes (each renders whole frames; process 0 writes them)",
+                frames.len()
+            );
+        }
+        for (pos, &i) in frames.iter().enumerate() {
+            let owner = pos % n;
+            if owner == 0 {
+                let (time, image, stats) =
+                    render_one(scene, series, i).with_context(|| format!("frame {i}"))?;
+                busy[0] += stats.seconds;
+                emit(i, time, &image, &stats)?;
+                continue;
+            }
+            let from = world.process_at_rank(owner as i32);
+            let (pixels, _) = from.receive_vec_with_tag::<f32>(FRAME_PIXELS);
+            let (f, _) = from.receive_vec_with_tag::<f64>(FRAME_FIGURES);
+            let (w, h) = (scene.render.width, scene.render.height);
+            if pixels.len() != 4 * (w * h) as usize || f.len() != 5 {
+                bail!(
+                    "frame {i}: process {owner} sent {} values for {w}×{h} pixels",
+                    pixels.len()
+                );
+            }
+            let image = voxcast::Image {
+                width: w,
+                height: h,
+                pixels: pixels
+                    .chunks_exact(4)
+                    .map(|c| [c[0], c[1], c[2], c[3]])
+                    .collect(),
+            };
+            let stats = voxcast::RenderStats {
+                seconds: f[1],
+                rays: f[2] as u64,
+                samples: f[3] as u64,
+                interpolations: f[4] as u64,
+                ..Default::default()
+            };
+            busy[owner] += stats.seconds;
+            emit(i, f[0], &image, &stats)?;
+        }
+        Ok(())
+    })?;
+    if !a.quiet {
+        eprintln!(
+            "{n} processes in {:.2} s wall; rendering per process {}",
+            start.elapsed().as_secs_f64(),
+            busy.iter()
+                .map(|s| format!("{s:.2} s"))
+                .collect::<Vec<_>>()
+                .join(", ")
         );
     }
     Ok(())
