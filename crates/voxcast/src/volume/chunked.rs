@@ -33,6 +33,18 @@ impl Level {
         std::array::from_fn(|a| self.dims[a].div_ceil(self.chunk[a] as u64))
     }
 
+    /// Chunk number `i`, counting x fastest.
+    pub fn chunk_at(&self, i: u64) -> [u64; 3] {
+        let n = self.chunk_counts();
+        [i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])]
+    }
+
+    /// The number of chunk `c`, counting x fastest (as [`Level::chunk_at`]).
+    pub fn chunk_index(&self, c: [u64; 3]) -> usize {
+        let n = self.chunk_counts();
+        (c[0] + n[0] * (c[1] + n[1] * c[2])) as usize
+    }
+
     /// The voxel box `[lo, hi)` of chunk `c`, cut by the level's dims.
     pub fn chunk_box(&self, c: [u64; 3]) -> ([u64; 3], [u64; 3]) {
         let lo: [u64; 3] = std::array::from_fn(|a| c[a] * self.chunk[a] as u64);
@@ -145,12 +157,7 @@ impl MemorySource {
                 (0..n)
                     .into_par_iter()
                     .map(|i| {
-                        let c = [
-                            i % counts[0],
-                            (i / counts[0]) % counts[1],
-                            i / (counts[0] * counts[1]),
-                        ];
-                        let (lo, hi) = l.chunk_box(c);
+                        let (lo, hi) = l.chunk_box(l.chunk_at(i));
                         let data = crop(vol, lo, hi);
                         let (mut a, mut b) = (f32::INFINITY, f32::NEG_INFINITY);
                         for k in 0..data.len() {
@@ -193,11 +200,12 @@ impl ChunkedSource for MemorySource {
         let Some(r) = self.ranges.as_ref().and_then(|r| r.get(level)) else {
             return ChunkRange::Unknown;
         };
-        let n = self.levels[level].chunk_counts();
+        let l = &self.levels[level];
+        let n = l.chunk_counts();
         if (0..3).any(|a| c[a] >= n[a]) {
             return ChunkRange::Unknown;
         }
-        r[(c[0] + n[0] * (c[1] + n[1] * c[2])) as usize]
+        r[l.chunk_index(c)]
     }
     fn read_chunk(&self, level: usize, c: [u64; 3]) -> Result<VoxelData> {
         let l = self

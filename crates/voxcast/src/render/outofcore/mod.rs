@@ -148,26 +148,37 @@ pub fn choose_level(levels: &[Level], cam: &Camera, lod_scale: f32) -> usize {
 /// the setting.
 fn check_params(params: &RenderParams) -> Result<()> {
     params.validate()?;
+    check_uniform(
+        params,
+        "out of core, voxcast",
+        "render a level that fits in memory with --level N, or raise --memory-budget until the volume fits",
+    )
+}
+
+/// Checks that `params` march uniform steps front to back in one pass, as
+/// bricks taken one after another can (`who` says who does, `way_out` what
+/// the user can do instead); the error names the setting.
+pub(crate) fn check_uniform(params: &RenderParams, who: &str, way_out: &str) -> Result<()> {
     if !matches!(params.method, Method::Uniform | Method::Jitter) {
         return Err(Error::invalid(format!(
-            "method {}: out of core, voxcast marches uniform steps only (uniform, jitter); render a level that fits in memory with --level N, or raise --memory-budget until the volume fits",
+            "method {}: {who} marches uniform steps only (uniform, jitter); {way_out}",
             params.method.name()
         )));
     }
     if params.order != Order::FrontToBack {
-        return Err(Error::invalid(
-            "render.order back-to-front: out of core, rays are composited front to back only",
-        ));
+        return Err(Error::invalid(format!(
+            "render.order back-to-front: {who} composites front to back only"
+        )));
     }
     if params.grouped {
-        return Err(Error::invalid(
-            "render.grouped: grouped interpolation is not available out of core",
-        ));
+        return Err(Error::invalid(format!(
+            "render.grouped: {who} has no grouped interpolation"
+        )));
     }
     if params.spp > 1 && (params.jitter || params.method == Method::Jitter) {
-        return Err(Error::invalid(
-            "render.spp: out of core, a jittered render takes one pass (spp = 1)",
-        ));
+        return Err(Error::invalid(format!(
+            "render.spp: {who} takes one jittered pass (spp = 1)"
+        )));
     }
     Ok(())
 }
@@ -434,15 +445,9 @@ impl<'s> OutOfCore<'s> {
             |c: [u64; 3]| part.is_none_or(|(lo, hi)| (0..3).all(|a| c[a] >= lo[a] && c[a] < hi[a]));
         let mut stats = OutOfCoreStats {
             level: lidx,
-            bricks: (0..n_chunks as u64)
-                .filter(|&i| {
-                    inside([
-                        i % counts[0],
-                        (i / counts[0]) % counts[1],
-                        i / (counts[0] * counts[1]),
-                    ])
-                })
-                .count(),
+            bricks: part.map_or(n_chunks, |(lo, hi)| {
+                (0..3).map(|a| hi[a].saturating_sub(lo[a])).product::<u64>() as usize
+            }),
             ..Default::default()
         };
         let mut plan: Vec<(i64, Brick)> = Vec::new();
@@ -729,19 +734,11 @@ pub(crate) fn widen(window: [f32; 2]) -> [f32; 2] {
 /// What the store knows of every chunk of level `lidx` (x fastest), in
 /// parallel.
 pub(crate) fn chunk_ranges(source: &dyn ChunkedSource, lidx: usize) -> Vec<ChunkRange> {
-    let counts = source.levels()[lidx].chunk_counts();
-    let n = counts.iter().product::<u64>() as usize;
+    let level = &source.levels()[lidx];
+    let n = level.chunk_counts().iter().product::<u64>();
     (0..n)
         .into_par_iter()
-        .map(|i| {
-            let i = i as u64;
-            let c = [
-                i % counts[0],
-                (i / counts[0]) % counts[1],
-                i / (counts[0] * counts[1]),
-            ];
-            source.chunk_range(lidx, c)
-        })
+        .map(|i| source.chunk_range(lidx, level.chunk_at(i)))
         .collect()
 }
 

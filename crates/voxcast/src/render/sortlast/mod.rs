@@ -44,7 +44,7 @@ use crate::camera::{Camera, CameraParams};
 use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::render::outofcore::{self, ChunkBox, OutOfCore, OutOfCoreStats};
-use crate::render::{Method, Order, RenderParams, RenderStats};
+use crate::render::{RenderParams, RenderStats};
 use crate::transfer::TransferFunction;
 use crate::volume::Level;
 use glam::Vec3;
@@ -453,24 +453,11 @@ pub struct SortLast {
 /// Checks that a sort-last render can run `params`; the error names the
 /// setting and the reason.
 pub fn check_params(params: &RenderParams) -> Result<()> {
-    if !matches!(params.method, Method::Uniform | Method::Jitter) {
-        return Err(Error::invalid(format!(
-            "method {}: a sort-last (MPI) render marches uniform steps only (uniform, jitter): {}",
-            params.method.name(),
-            "adaptive steps, grouped reuse, level-of-detail and stochastic marchers decide along the whole ray, which no process holds"
-        )));
-    }
-    if params.order != Order::FrontToBack {
-        return Err(Error::invalid(
-            "render.order back-to-front: a sort-last (MPI) render composites front to back",
-        ));
-    }
-    if params.grouped {
-        return Err(Error::invalid(
-            "render.grouped: grouped interpolation is not available in a sort-last (MPI) render",
-        ));
-    }
-    Ok(())
+    outofcore::check_uniform(
+        params,
+        "a sort-last (MPI) render",
+        "adaptive steps, grouped reuse, level-of-detail and stochastic marchers decide along the whole ray, which no process holds",
+    )
 }
 
 /// Renders `source` split over the processes of `ex` and composites the
@@ -509,12 +496,14 @@ pub fn render(
     // its border; counting the chunk itself is near enough for balance.
     let w = outofcore::widen(window);
     let ranges = outofcore::chunk_ranges(source, lidx);
-    let counts = level.chunk_counts();
     let weight = |c: [u64; 3]| {
-        let r = &ranges[(c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize];
-        u64::from(!outofcore::known_empty(tf, w, r))
+        u64::from(!outofcore::known_empty(
+            tf,
+            w,
+            &ranges[level.chunk_index(c)],
+        ))
     };
-    let d = Decomposition::new(counts, ex.size(), &weight);
+    let d = Decomposition::new(level.chunk_counts(), ex.size(), &weight);
     let rank = ex.rank();
     let part = d.part(rank);
     let t = Instant::now();

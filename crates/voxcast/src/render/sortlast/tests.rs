@@ -2,6 +2,7 @@ use super::*;
 use crate::camera::Projection;
 use crate::metrics::psnr;
 use crate::render::outofcore::OutOfCoreParams;
+use crate::render::{Method, Order};
 use crate::volume::{MemorySource, Volume, VoxelData};
 
 #[test]
