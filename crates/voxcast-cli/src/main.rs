@@ -21,9 +21,10 @@ fn main() {
         let result = match &cli.command {
             Command::Render(a) => Some(cmd::mpi::render(a, &world)),
             Command::Animate(a) => Some(cmd::mpi::animate(a, &world)),
+            Command::Bench(a) => Some(cmd::mpi::bench(a, &world)),
             _ if world.size() == 1 => None,
             _ => Some(Err(anyhow::anyhow!(
-                "under mpirun, voxcast runs `render` (the volume split over the processes) and `animate` (the frames spread over them) only; run other commands without mpirun"
+                "under mpirun, voxcast runs `render` and `bench` (the volume split over the processes) and `animate` (the frames spread over them) only; run other commands without mpirun"
             ))),
         };
         match result {

@@ -191,3 +191,52 @@ fn animate_spreads_the_frames_and_writes_the_one_process_frames() {
         assert!(a == b, "{name} differs");
     }
 }
+
+#[test]
+fn bench_under_mpi_reports_each_process_and_skips_whole_ray_methods() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let o = mpirun(
+        2,
+        &[
+            "bench",
+            "builtin:demo",
+            "--size",
+            "64x48",
+            "--methods",
+            "uniform,adaptive,jitter",
+            "--repeat",
+            "2",
+            "--warmup",
+            "0",
+            "--json",
+            "b.json",
+        ],
+        d,
+    );
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(said.contains("skipped adaptive"), "{said}");
+    let table = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        table.contains("| uniform |") && table.contains("| jitter |"),
+        "{table}"
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("b.json")).unwrap()).unwrap();
+    assert_eq!(j["processes"], 2);
+    let methods = j["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), 2);
+    for m in methods {
+        assert_eq!(m["render_seconds_per_process"].as_array().unwrap().len(), 2);
+        assert!(
+            (m["bytes_per_pixel"].as_f64().unwrap() - 24.0).abs() < 0.5,
+            "{m}"
+        );
+        // Null: identical to one process.
+        let db = m["psnr_db_vs_one_process"]
+            .as_f64()
+            .unwrap_or(f64::INFINITY);
+        assert!(db >= 60.0, "{m}");
+    }
+}

@@ -8,10 +8,11 @@
 //! whole frames, with any method, and process 0 writes them in order.
 //! An error on any process ends all of them (`MPI_Abort`) with its message.
 
-use crate::args::{AnimateArgs, DeviceArg, RenderArgs};
+use crate::args::{AnimateArgs, BenchArgs, DeviceArg, RenderArgs};
 use anyhow::{bail, Context, Result};
 use mpi::topology::{Communicator, SimpleCommunicator};
 use mpi::traits::{CommunicatorCollectives, Destination, Source};
+use std::io::Write;
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -142,6 +143,48 @@ impl Exchange for MpiExchange<'_> {
     }
 }
 
+/// The default memory budget of a process: the machine's default shared by
+/// the processes on it.
+fn default_budget() -> u64 {
+    outofcore::default_budget() / local_processes()
+}
+
+/// The scene's input as a chunked source, the scene prepared (its transfer
+/// function and window), and whether the input is a store: a Zarr store is
+/// read chunk by chunk; any other input is read whole and cut into chunks.
+fn open(
+    scene: &voxcast::scene::Scene,
+) -> Result<(Box<dyn ChunkedSource>, voxcast::scene::Prepared, bool)> {
+    let path = Path::new(&scene.input.path);
+    let zarr =
+        !scene.input.path.starts_with(voxcast::builtin::PREFIX) && voxcast::io::zarr::is_zarr(path);
+    if zarr {
+        let store = ZarrStore::open_with(path, &scene.input.options)?;
+        let (prepared, _) = super::render_chunked::prepare_from_proxy(scene, &store)?;
+        Ok((Box::new(store), prepared, true))
+    } else {
+        let prepared = scene.prepare()?;
+        let src = MemorySource::new(prepared.volume.clone(), 0, [MEMORY_CHUNK; 3])?.with_ranges();
+        Ok((Box::new(src), prepared, false))
+    }
+}
+
+/// One process's figures of a render, in the order process 0 reads them:
+/// render, compositing and wait seconds, bytes sent, chunks that may show,
+/// samples, bytes read.
+fn figures(r: &sortlast::SortLast) -> Vec<f32> {
+    let s = &r.sort_last;
+    vec![
+        s.render_seconds as f32,
+        s.composite.seconds as f32,
+        s.composite.bytes_sent as f32,
+        s.weight as f32,
+        r.stats.samples as f32,
+        s.out_of_core.bytes_read as f32,
+        s.wait_seconds as f32,
+    ]
+}
+
 /// `voxcast render` on every process of `world`.
 pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     let ex = MpiExchange { world };
@@ -162,22 +205,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
         None
     };
     let t_load = Instant::now();
-    let path = Path::new(&scene.input.path);
-    let zarr =
-        !scene.input.path.starts_with(voxcast::builtin::PREFIX) && voxcast::io::zarr::is_zarr(path);
-    // The processes of one machine share its memory.
-    let budget = a
-        .memory_budget
-        .unwrap_or_else(|| outofcore::default_budget() / local_processes());
-    let (source, prepared): (Box<dyn ChunkedSource>, _) = if zarr {
-        let store = ZarrStore::open_with(path, &scene.input.options)?;
-        let (prepared, _) = super::render_chunked::prepare_from_proxy(&scene, &store)?;
-        (Box::new(store), prepared)
-    } else {
-        let prepared = scene.prepare()?;
-        let src = MemorySource::new(prepared.volume.clone(), 0, [MEMORY_CHUNK; 3])?.with_ranges();
-        (Box::new(src), prepared)
-    };
+    let (source, prepared, zarr) = open(&scene)?;
     if let Some((outputs, _)) = planned.as_mut() {
         outputs.check()?;
     }
@@ -187,7 +215,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     let ooc = OutOfCore::new(
         source.as_ref(),
         OutOfCoreParams {
-            budget,
+            budget: a.memory_budget.unwrap_or_else(default_budget),
             level: scene.input.options.level,
             ..Default::default()
         },
@@ -227,16 +255,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     .with_context(|| format!("process {rank} of {n}"))?;
     // Every process's figures, to process 0.
     let s = &r.sort_last;
-    let mine = vec![
-        s.render_seconds as f32,
-        s.composite.seconds as f32,
-        s.composite.bytes_sent as f32,
-        s.weight as f32,
-        r.stats.samples as f32,
-        s.out_of_core.bytes_read as f32,
-        s.wait_seconds as f32,
-    ];
-    let all = ex.gather(1000, mine)?;
+    let all = ex.gather(1000, figures(&r))?;
     let (Some(image), Some(all), Some((mut outputs, out))) = (r.image, all, planned) else {
         return Ok(());
     };
@@ -417,5 +436,183 @@ pub fn animate(a: &AnimateArgs, world: &SimpleCommunicator) -> Result<()> {
                 .join(", ")
         );
     }
+    Ok(())
+}
+
+/// `voxcast bench` on every process of `world`: each method that a
+/// sort-last render can run is rendered `--warmup` times and then
+/// `--repeat` times with the chunk cache warm, and process 0 prints the
+/// medians — the frame (the slowest render plus compositing), each
+/// process's render, the wait for the slowest, compositing, bytes sent per
+/// pixel — and the PSNR against one process's render of the same method
+/// (`--ert 1`, out of core).
+pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
+    use voxcast_bench as vb;
+    let ex = MpiExchange { world };
+    let (rank, n) = (ex.rank(), ex.size());
+    let lead = rank == 0 && !a.quiet;
+    if !a.target_psnr.is_empty() || a.quality.is_some() {
+        bail!("--target-psnr, --quality: not available under MPI (their pilots render the whole volume on one process)");
+    }
+    if !matches!(a.device, DeviceArg::Cpu) {
+        bail!("--device: under MPI, voxcast renders on the CPU of each process; leave --device at cpu");
+    }
+    if a.chart.is_some() {
+        bail!("--chart: not drawn under MPI; use --json");
+    }
+    if a.repeat == 0 {
+        bail!("--repeat 0: at least one timed render per method is needed");
+    }
+    let scene = a.scene.scene()?;
+    let mut outputs = voxcast::files::Outputs::new([&scene.input.path]);
+    if rank == 0 {
+        outputs.plan_optional("--json", a.json.as_deref(), &[])?;
+    }
+    let (source, prepared, _) = open(&scene)?;
+    if rank == 0 {
+        outputs.check()?;
+    }
+    let mut methods = Vec::new();
+    let mut skipped = Vec::new();
+    for spec in vb::parse_methods(&a.methods)? {
+        let params = vb::method_params(&scene.render, &spec);
+        match sortlast::check_params(&params) {
+            Ok(()) => methods.push((spec.to_string(), params)),
+            Err(_) => skipped.push(spec.to_string()),
+        }
+    }
+    if methods.is_empty() {
+        bail!(
+            "--methods {}: none of them runs under MPI (uniform and jitter do)",
+            a.methods
+        );
+    }
+    if lead && !skipped.is_empty() {
+        eprintln!(
+            "under MPI, skipped {}: they decide along the whole ray, which no process holds",
+            skipped.join(", ")
+        );
+    }
+    let ooc = OutOfCore::new(
+        source.as_ref(),
+        OutOfCoreParams {
+            budget: default_budget(),
+            level: scene.input.options.level,
+            ..Default::default()
+        },
+    );
+    let never = AtomicBool::new(false);
+    let mut rows = Vec::new();
+    let mut table = format!(
+        "| method | frame (render + compositing) | render, slowest (mean) | wait | compositing | bytes sent / pixel | samples | PSNR vs 1 process |\n|---|---:|---:|---:|---:|---:|---:|---:|\n"
+    );
+    for (label, params) in &methods {
+        let mut runs: Vec<Vec<Vec<f32>>> = Vec::new();
+        let mut last = None;
+        for k in 0..a.warmup + a.repeat {
+            let r = sortlast::render(
+                &ex,
+                &ooc,
+                &prepared.tf,
+                prepared.window,
+                &scene.camera,
+                params,
+                &|_, _| {},
+                &never,
+            )
+            .with_context(|| format!("{label}, process {rank} of {n}"))?;
+            let all = ex.gather(1000, figures(&r))?;
+            if let (true, Some(all)) = (k >= a.warmup, all) {
+                runs.push(all);
+            }
+            last = r.image;
+        }
+        if rank != 0 {
+            continue;
+        }
+        // One process, for the picture.
+        let mut one = params.clone();
+        one.ert = 1.0;
+        let (alone, ..) = ooc.render(
+            &prepared.tf,
+            prepared.window,
+            &scene.camera,
+            &one,
+            &|_, _| {},
+            &never,
+        )?;
+        let image = last.context("process 0 holds the image")?;
+        let db = voxcast::metrics::psnr(&image, &alone)?;
+        let med =
+            |f: &dyn Fn(&Vec<Vec<f32>>) -> f64| vb::median(&runs.iter().map(f).collect::<Vec<_>>());
+        let max = |i: usize| {
+            move |all: &Vec<Vec<f32>>| all.iter().map(|v| v[i] as f64).fold(0.0, f64::max)
+        };
+        let render = med(&max(0));
+        let mean = med(&|all| all.iter().map(|v| v[0] as f64).sum::<f64>() / n as f64);
+        let composite = med(&max(1));
+        let wait = med(&max(6));
+        let pixels = (params.width * params.height) as f64;
+        let bpp = med(&|all| all.iter().map(|v| v[2] as f64).sum::<f64>() / pixels);
+        let samples = med(&|all| all.iter().map(|v| v[4] as f64).sum::<f64>());
+        let per_process: Vec<f64> = (0..n)
+            .map(|p| vb::median(&runs.iter().map(|all| all[p][0] as f64).collect::<Vec<_>>()))
+            .collect();
+        table += &format!(
+            "| {label} | {:.1} ms | {:.1} ms ({:.1}) | {:.1} ms | {:.1} ms | {bpp:.1} | {:.2} M | {} |\n",
+            (render + composite) * 1e3,
+            render * 1e3,
+            mean * 1e3,
+            wait * 1e3,
+            composite * 1e3,
+            samples / 1e6,
+            if db.is_finite() {
+                format!("{db:.1} dB")
+            } else {
+                "identical".into()
+            }
+        );
+        rows.push(serde_json::json!({
+            "method": label,
+            "frame_seconds": render + composite,
+            "render_seconds_max": render,
+            "render_seconds_mean": mean,
+            "render_seconds_per_process": per_process,
+            "wait_seconds": wait,
+            "composite_seconds": composite,
+            "bytes_per_pixel": bpp,
+            "samples": samples,
+            "psnr_db_vs_one_process": if db.is_finite() { Some(db) } else { None },
+        }));
+    }
+    if rank != 0 {
+        return Ok(());
+    }
+    let mut text = format!(
+        "{} on {n} MPI process{} (sort-last, radix-k {:?}), {}×{}, {} timed renders after {} warm-up, medians; early ray termination off\n",
+        scene.input.path,
+        if n == 1 { "" } else { "es" },
+        sortlast::rounds(n),
+        scene.render.width,
+        scene.render.height,
+        a.repeat,
+        a.warmup
+    );
+    text += &table;
+    print!("{text}");
+    if let Some(f) = &a.json {
+        let json = serde_json::to_string_pretty(&serde_json::json!({
+            "input": scene.input.path,
+            "processes": n,
+            "rounds": sortlast::rounds(n),
+            "width": scene.render.width,
+            "height": scene.render.height,
+            "repeat": a.repeat,
+            "warmup": a.warmup,
+            "methods": rows,
+        }))?;
+        outputs.write(f, |w| writeln!(w, "{json}"))?;
+    }
+    outputs.commit()?;
     Ok(())
 }
