@@ -503,8 +503,8 @@ pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
     );
     let never = AtomicBool::new(false);
     let mut rows = Vec::new();
-    let mut table = format!(
-        "| method | frame (render + compositing) | render, slowest (mean) | wait | compositing | bytes sent / pixel | samples | PSNR vs 1 process |\n|---|---:|---:|---:|---:|---:|---:|---:|\n"
+    let mut table = String::from(
+        "| method | frame (render + compositing) | render, slowest (mean) | wait | compositing | bytes sent / pixel | samples | PSNR vs 1 process |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for (label, params) in &methods {
         let mut runs: Vec<Vec<Vec<f32>>> = Vec::new();
