@@ -102,14 +102,19 @@ fn three_processes_give_the_one_process_picture_from_either_side() {
             assert_eq!(j["mpi"]["processes"], n);
             assert_eq!(j["mpi"]["per_process"].as_array().unwrap().len(), n);
             let bpp = j["mpi"]["bytes_per_pixel"].as_f64().unwrap();
-            // Direct send among three: each sends 2/3 of its image (16
-            // bytes a pixel) and its third to process 0.
-            let want = if n == 1 {
-                0.0
+            // Direct send among three: each sends at most 2/3 of its image
+            // (16 bytes a pixel; less where a piece is transparent at its
+            // ends) and its third to process 0.
+            if n == 1 {
+                assert_eq!(bpp, 0.0);
             } else {
-                16.0 * (2.0 + 2.0 / 3.0)
-            };
-            assert!((bpp - want).abs() < 0.5, "{n}: {bpp} bytes per pixel");
+                let most = 16.0 * (2.0 + 2.0 / 3.0);
+                let least = 16.0 * 2.0 / 3.0;
+                assert!(
+                    bpp > least && bpp < most + 0.5,
+                    "{n}: {bpp} bytes per pixel"
+                );
+            }
         }
     }
 }
@@ -229,10 +234,9 @@ fn bench_under_mpi_reports_each_process_and_skips_whole_ray_methods() {
     assert_eq!(methods.len(), 2);
     for m in methods {
         assert_eq!(m["render_seconds_per_process"].as_array().unwrap().len(), 2);
-        assert!(
-            (m["bytes_per_pixel"].as_f64().unwrap() - 24.0).abs() < 0.5,
-            "{m}"
-        );
+        // At most half the image each, and the gather's half.
+        let bpp = m["bytes_per_pixel"].as_f64().unwrap();
+        assert!(bpp > 8.0 && bpp < 24.5, "{m}");
         // Null: identical to one process.
         let db = m["psnr_db_vs_one_process"]
             .as_f64()

@@ -17,6 +17,8 @@ Examples:
   voxcast render ../shared/data/fds_room/room_smoke.smv --time 30 --shadows on
                                                    # FDS soot over the room's obstructions
   voxcast render frames/ --geometry room.toml      # smoke over boxes, planes, OBJ meshes
+  mpirun -np 8 voxcast render big.zarr -o big.png  # split over 8 processes, composited
+                                                   # (build with --features mpi; docs/mpi.md)
 
 Axes: at azimuth 0, elevation 0 the camera looks along +y with +x to the right
 and +z up; positive azimuth orbits counter-clockwise seen from +z.";

@@ -347,40 +347,46 @@ pub fn composite(
         let (node, me) = d.group_node(rank, r);
         let base = rank - me * stride;
         let peers: Vec<usize> = (0..k).map(|j| base + j * stride).collect();
-        // Send piece j to member j; keep our own.
+        // Send piece j to member j, only its stretch from the first to the
+        // last pixel that holds anything (the rest is transparent); keep
+        // our own.
         let out: Vec<Vec<f32>> = (0..k)
             .map(|j| {
                 if j == me {
                     return Vec::new();
                 }
                 let (a, b) = piece(lo, hi, j, k);
-                stats.bytes_sent += 16 * (b - a) as u64;
-                held[4 * (a - lo)..4 * (b - lo)].to_vec()
+                let m = active(&held[4 * (a - lo)..4 * (b - lo)]);
+                stats.bytes_sent += 4 * m.len() as u64;
+                m
             })
             .collect();
         let got = ex.exchange(r as u32, &peers, out)?;
         let (a, b) = piece(lo, hi, me, k);
-        // Over, nearest child first.
-        let mut acc: Vec<f32> = Vec::new();
-        for (n, child) in d.order(node, view).into_iter().enumerate() {
-            let layer: &[f32] = if child == me {
-                &held[4 * (a - lo)..4 * (b - lo)]
+        let mine = &held[4 * (a - lo)..4 * (b - lo)];
+        // Over, nearest child first: each layer under what is in front.
+        let mut acc = vec![0.0f32; 4 * (b - a)];
+        for child in d.order(node, view) {
+            let (start, layer) = if child == me {
+                (0, mine)
             } else {
-                &got[child]
+                let m = &got[child];
+                let stretch = (m.len() >= 2)
+                    .then(|| (m[0].to_bits() as usize, &m[2..]))
+                    .filter(|&(s, l)| {
+                        l.len() == 4 * m[1].to_bits() as usize && 4 * s + l.len() <= acc.len()
+                    });
+                let Some(stretch) = stretch else {
+                    return Err(Error::invalid(format!(
+                        "sort-last: process {} sent a malformed piece in round {r} ({} values for {} pixels)",
+                        peers[child],
+                        m.len(),
+                        b - a
+                    )));
+                };
+                stretch
             };
-            if layer.len() != 4 * (b - a) {
-                return Err(Error::invalid(format!(
-                    "sort-last: process {} sent {} values in round {r}, expected {}",
-                    peers[child],
-                    layer.len(),
-                    4 * (b - a)
-                )));
-            }
-            if n == 0 {
-                acc = layer.to_vec();
-            } else {
-                over(&mut acc, layer);
-            }
+            under(&mut acc[4 * start..4 * start + layer.len()], layer);
         }
         held = acc;
         (lo, hi) = (a, b);
@@ -411,15 +417,37 @@ pub fn composite(
     Ok((image, stats))
 }
 
-/// `front` over `back` (premultiplied RGBA, four values a pixel), in place
-/// of `front`.
-fn over(front: &mut [f32], back: &[f32]) {
+/// `back` composited under `front` (premultiplied RGBA, four values a
+/// pixel: `front` over `back`), in place of `front`.
+fn under(front: &mut [f32], back: &[f32]) {
     for (f, b) in front.chunks_exact_mut(4).zip(back.chunks_exact(4)) {
         let t = 1.0 - f[3];
         for c in 0..4 {
             f[c] += t * b[c];
         }
     }
+}
+
+/// The message for a piece of premultiplied pixels: the stretch from its
+/// first to its last pixel that is not fully transparent, as the stretch's
+/// first pixel and pixel count (their bits as two `f32`s), then its values.
+/// A piece outside a part's screen footprint costs two values — the
+/// active-pixel bounds of IceT, in one dimension.
+fn active(piece: &[f32]) -> Vec<f32> {
+    let used = |p: &[f32]| p.iter().any(|&v| v != 0.0);
+    let first = piece
+        .chunks_exact(4)
+        .position(used)
+        .unwrap_or(piece.len() / 4);
+    let last = piece
+        .chunks_exact(4)
+        .rposition(used)
+        .map_or(first, |i| i + 1);
+    let mut m = Vec::with_capacity(2 + 4 * (last - first));
+    m.push(f32::from_bits(first as u32));
+    m.push(f32::from_bits((last - first) as u32));
+    m.extend_from_slice(&piece[4 * first..4 * last]);
+    m
 }
 
 /// One process's figures of a sort-last render.
