@@ -244,3 +244,32 @@ fn bench_under_mpi_reports_each_process_and_skips_whole_ray_methods() {
         assert!(db >= 60.0, "{m}");
     }
 }
+
+#[test]
+fn show_parts_tints_each_process_and_needs_mpirun() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let args = [
+        "render",
+        "builtin:demo",
+        "--size",
+        "64x64",
+        "--ert",
+        "1",
+        "-q",
+    ];
+    let mut plain = args.to_vec();
+    plain.extend(["-o", "plain.png"]);
+    let o = mpirun(2, &plain, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut tinted = args.to_vec();
+    tinted.extend(["-o", "tinted.png", "--show-parts"]);
+    let o = mpirun(2, &tinted, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let db = psnr("plain.png", "tinted.png", d);
+    assert!(db < 30.0, "the tint shows: {db:.1} dB");
+    // Without mpirun there are no parts to show.
+    let o = voxcast(&["render", "--show-parts", "-o", "x.png"], d);
+    assert!(!o.status.success() && stderr(&o).contains("--show-parts"));
+    assert!(!d.join("x.png").exists());
+}

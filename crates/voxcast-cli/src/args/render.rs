@@ -94,6 +94,12 @@ pub struct RenderArgs {
     /// budget.
     #[arg(long, help_heading = "Large volumes")]
     pub out_of_core: bool,
+    /// Under mpirun: tint each process's part of the volume with its own
+    /// colour, to see how the volume was split (as ParaView colours by
+    /// process).
+    #[cfg(feature = "mpi")]
+    #[arg(long, help_heading = "Large volumes")]
+    pub show_parts: bool,
 }
 
 fn parse_budget(s: &str) -> Result<u64, String> {

@@ -249,6 +249,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
         prepared.window,
         &scene.camera,
         &scene.render,
+        a.show_parts,
         &|_, _| {},
         &AtomicBool::new(false),
     )
@@ -517,6 +518,7 @@ pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
                 prepared.window,
                 &scene.camera,
                 params,
+                false,
                 &|_, _| {},
                 &never,
             )

@@ -13,6 +13,12 @@ use voxcast::scene::Scene;
 use voxcast_gpu::Device;
 
 pub fn run(a: RenderArgs) -> Result<()> {
+    #[cfg(feature = "mpi")]
+    if a.show_parts {
+        anyhow::bail!(
+            "--show-parts: the volume is split only under mpirun (mpirun -np N voxcast render …)"
+        );
+    }
     let mut scene = a.scene()?;
     // A chunked store: the level the camera needs, read whole if it fits
     // the memory budget, else rendered out of core.

@@ -469,6 +469,24 @@ pub struct SortLastStats {
     pub out_of_core: OutOfCoreStats,
 }
 
+/// The hue process `rank`'s part is tinted with (`show_parts`): Tableau's
+/// ten colours, linear RGB, repeating.
+pub fn part_colour(rank: usize) -> [f32; 3] {
+    const TAB10: [[u8; 3]; 10] = [
+        [31, 119, 180],
+        [255, 127, 14],
+        [44, 160, 44],
+        [214, 39, 40],
+        [148, 103, 189],
+        [140, 86, 75],
+        [227, 119, 194],
+        [127, 127, 127],
+        [188, 189, 34],
+        [23, 190, 207],
+    ];
+    TAB10[rank % 10].map(|v| crate::transfer::srgb_to_linear(v as f32 / 255.0))
+}
+
 /// What a sort-last render gives each process.
 pub struct SortLast {
     /// The picture, on process 0 only.
@@ -492,7 +510,8 @@ pub fn check_params(params: &RenderParams) -> Result<()> {
 /// parts: process 0 gets the image. Every process must call it with the
 /// same arguments. Early ray termination is switched off (see the module
 /// documentation), so the picture is the one-process render's with
-/// `ert = 1`.
+/// `ert = 1`. With `show_parts`, each process's colours are tinted with its
+/// own hue ([`part_colour`]), to see the split.
 #[allow(clippy::too_many_arguments)]
 pub fn render(
     ex: &dyn Exchange,
@@ -501,6 +520,7 @@ pub fn render(
     window: [f32; 2],
     camera: &CameraParams,
     params: &RenderParams,
+    show_parts: bool,
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
 ) -> Result<SortLast> {
@@ -535,8 +555,18 @@ pub fn render(
     let rank = ex.rank();
     let part = d.part(rank);
     let t = Instant::now();
-    let (pixels, stats, oo) =
+    let (mut pixels, stats, oo) =
         ooc.render_part(tf, window, camera, &params, Some(part), progress, cancel)?;
+    if show_parts {
+        let t = part_colour(rank);
+        for p in &mut pixels {
+            // The part's brightness in its hue (premultiplied: opacity kept).
+            let y = 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+            for c in 0..3 {
+                p[c] = (0.35 * p[3] + 0.65 * y) * t[c];
+            }
+        }
+    }
     let render_seconds = t.elapsed().as_secs_f64();
     let view = View::new(&cam, level);
     let t = Instant::now();

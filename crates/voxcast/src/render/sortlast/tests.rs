@@ -204,7 +204,18 @@ fn sort_last_over_threads_gives_the_one_process_picture() {
             .unwrap();
         for n in [1, 2, 3, 4, 6] {
             let out = run_threads(n, |ex| {
-                render(ex, &ooc, &tf, window, &cam, &params, &|_, _| {}, &never).unwrap()
+                render(
+                    ex,
+                    &ooc,
+                    &tf,
+                    window,
+                    &cam,
+                    &params,
+                    false,
+                    &|_, _| {},
+                    &never,
+                )
+                .unwrap()
             });
             let img = out[0].image.as_ref().expect("process 0 has the image");
             let worst = img
