@@ -163,8 +163,18 @@ fn open(
         let (prepared, _) = super::render_chunked::prepare_from_proxy(scene, &store)?;
         Ok((Box::new(store), prepared, true))
     } else {
-        let prepared = scene.prepare()?;
-        let src = MemorySource::new(prepared.volume.clone(), 0, [MEMORY_CHUNK; 3])?.with_ranges();
+        let mut prepared = scene.prepare()?;
+        // The voxels move behind an Arc, shared by the scene and the
+        // source instead of copied.
+        let tiny = voxcast::Volume::new(
+            [1, 1, 1],
+            glam::Vec3::ONE,
+            glam::Vec3::ZERO,
+            voxcast::VoxelData::U8(vec![0u8].into()),
+        )?;
+        let volume = std::mem::replace(&mut prepared.volume, tiny).into_shared();
+        prepared.volume = volume.clone();
+        let src = MemorySource::new(volume, 0, [MEMORY_CHUNK; 3])?.with_ranges();
         Ok((Box::new(src), prepared, false))
     }
 }
