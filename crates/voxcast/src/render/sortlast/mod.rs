@@ -23,8 +23,9 @@
 //!    composite its piece of the image in the node's visibility order. In
 //!    each round every process keeps 1/k of the image piece it holds and
 //!    sends the rest to its group, so no process holds more than its share
-//!    of the image after the first round; the pieces are gathered on
-//!    process 0 at the end.
+//!    of the image after the first round; a piece travels only from its
+//!    first to its last pixel that is not transparent. The pieces are
+//!    gathered on process 0 at the end.
 //!
 //! The transport is the [`Exchange`] trait: MPI in the command-line tool
 //! (its `mpi` feature), threads in [`ThreadExchange`] (tests, and a check
