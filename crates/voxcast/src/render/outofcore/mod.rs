@@ -279,6 +279,9 @@ pub struct OutOfCore<'s> {
     /// the budget: a warm frame flags a brick's empty cells without reading
     /// its voxels again.
     cells: std::sync::Mutex<CellStore>,
+    /// What the store knows of each chunk, per level, asked once: a store
+    /// answers with a file-system call per chunk.
+    ranges: std::sync::Mutex<std::collections::HashMap<usize, std::sync::Arc<Vec<ChunkRange>>>>,
 }
 
 /// The cell ranges of bricks marched so far, by (level, chunk, shaded
@@ -307,6 +310,7 @@ impl<'s> OutOfCore<'s> {
             ooc,
             cache,
             cells: Default::default(),
+            ranges: Default::default(),
         }
     }
 
@@ -328,6 +332,19 @@ impl<'s> OutOfCore<'s> {
             Some(l) => Ok(l),
             None => Ok(choose_level(levels, cam, self.ooc.lod_scale)),
         }
+    }
+
+    /// What the store knows of every chunk of level `lidx` (x fastest):
+    /// asked of the store on the first render of the level, kept after.
+    pub(crate) fn ranges(&self, lidx: usize) -> std::sync::Arc<Vec<ChunkRange>> {
+        let kept = self.ranges.lock().ok().and_then(|m| m.get(&lidx).cloned());
+        kept.unwrap_or_else(|| {
+            let r = std::sync::Arc::new(chunk_ranges(self.source, lidx));
+            if let Ok(mut m) = self.ranges.lock() {
+                m.insert(lidx, r.clone());
+            }
+            r
+        })
     }
 
     /// What the cache has done since it was made.
@@ -426,7 +443,7 @@ impl<'s> OutOfCore<'s> {
         let counts = level.chunk_counts();
         let cidx = |c: [u64; 3]| (c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize;
         let n_chunks = counts.iter().product::<u64>() as usize;
-        let ranges = chunk_ranges(source, lidx);
+        let ranges = self.ranges(lidx);
         let transparent = |lo: f32, hi: f32| range_transparent(tf, window, lo, hi);
         // Whether values in `[lo, hi]` may show, with a table entry of margin
         // on each side (a value is classified by its nearest entry).
@@ -733,7 +750,7 @@ pub(crate) fn widen(window: [f32; 2]) -> [f32; 2] {
 
 /// What the store knows of every chunk of level `lidx` (x fastest), in
 /// parallel.
-pub(crate) fn chunk_ranges(source: &dyn ChunkedSource, lidx: usize) -> Vec<ChunkRange> {
+fn chunk_ranges(source: &dyn ChunkedSource, lidx: usize) -> Vec<ChunkRange> {
     let level = &source.levels()[lidx];
     let n = level.chunk_counts().iter().product::<u64>();
     (0..n)

@@ -544,7 +544,7 @@ pub fn render(
     // around it, so a transparent chunk beside a visible one still marches
     // its border; counting the chunk itself is near enough for balance.
     let w = outofcore::widen(window);
-    let ranges = outofcore::chunk_ranges(source, lidx);
+    let ranges = ooc.ranges(lidx);
     let weight = |c: [u64; 3]| {
         u64::from(!outofcore::known_empty(
             tf,
