@@ -179,20 +179,80 @@ fn open(
     }
 }
 
-/// One process's figures of a render, in the order process 0 reads them:
-/// render, compositing and wait seconds, bytes sent, chunks that may show,
-/// samples, bytes read.
-fn figures(r: &sortlast::SortLast) -> Vec<f32> {
-    let s = &r.sort_last;
-    vec![
-        s.render_seconds as f32,
-        s.composite.seconds as f32,
-        s.composite.bytes_sent as f32,
-        s.weight as f32,
-        r.stats.samples as f32,
-        s.out_of_core.bytes_read as f32,
-        s.wait_seconds as f32,
-    ]
+/// One process's figures of a render, sent to process 0 as `f32`s.
+#[derive(Clone, Copy, serde::Serialize)]
+struct Figures {
+    render_seconds: f64,
+    composite_seconds: f64,
+    bytes_sent: f64,
+    visible_chunks: f64,
+    samples: f64,
+    bytes_read: f64,
+    wait_seconds: f64,
+}
+
+impl Figures {
+    fn of(r: &sortlast::SortLast) -> Figures {
+        let s = &r.sort_last;
+        Figures {
+            render_seconds: s.render_seconds,
+            composite_seconds: s.composite.seconds,
+            bytes_sent: s.composite.bytes_sent as f64,
+            visible_chunks: s.weight as f64,
+            samples: r.stats.samples as f64,
+            bytes_read: s.out_of_core.bytes_read as f64,
+            wait_seconds: s.wait_seconds,
+        }
+    }
+
+    fn to_message(self) -> Vec<f32> {
+        [
+            self.render_seconds,
+            self.composite_seconds,
+            self.bytes_sent,
+            self.visible_chunks,
+            self.samples,
+            self.bytes_read,
+            self.wait_seconds,
+        ]
+        .map(|v| v as f32)
+        .to_vec()
+    }
+
+    fn from_message(v: &[f32]) -> Result<Figures> {
+        let &[render_seconds, composite_seconds, bytes_sent, visible_chunks, samples, bytes_read, wait_seconds] =
+            v
+        else {
+            bail!("a process sent {} figures, expected 7", v.len());
+        };
+        let f = |x: f32| x as f64;
+        Ok(Figures {
+            render_seconds: f(render_seconds),
+            composite_seconds: f(composite_seconds),
+            bytes_sent: f(bytes_sent),
+            visible_chunks: f(visible_chunks),
+            samples: f(samples),
+            bytes_read: f(bytes_read),
+            wait_seconds: f(wait_seconds),
+        })
+    }
+}
+
+/// Every process's [`Figures`] of one render, on process 0 (`None`
+/// elsewhere).
+fn gather_figures(ex: &MpiExchange<'_>, r: &sortlast::SortLast) -> Result<Option<Vec<Figures>>> {
+    ex.gather(1000, Figures::of(r).to_message())?
+        .map(|all| all.iter().map(|v| Figures::from_message(v)).collect())
+        .transpose()
+}
+
+/// The largest and the sum of one figure over the processes.
+fn max_of(all: &[Figures], f: impl Fn(&Figures) -> f64) -> f64 {
+    all.iter().map(f).fold(0.0, f64::max)
+}
+
+fn sum_of(all: &[Figures], f: impl Fn(&Figures) -> f64) -> f64 {
+    all.iter().map(f).sum()
 }
 
 /// `voxcast render` on every process of `world`.
@@ -266,7 +326,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     .with_context(|| format!("process {rank} of {n}"))?;
     // Every process's figures, to process 0.
     let s = &r.sort_last;
-    let all = ex.gather(1000, figures(&r))?;
+    let all = gather_figures(&ex, &r)?;
     let (Some(image), Some(all), Some((mut outputs, out))) = (r.image, all, planned) else {
         return Ok(());
     };
@@ -274,26 +334,22 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     let per_rank: Vec<serde_json::Value> = all
         .iter()
         .enumerate()
-        .map(|(p, v)| {
-            serde_json::json!({
-                "rank": p,
-                "render_seconds": v[0],
-                "composite_seconds": v[1],
-                "bytes_sent": v[2],
-                "visible_chunks": v[3],
-                "samples": v[4],
-                "bytes_read": v[5],
-                "wait_seconds": v[6],
-            })
+        .map(|(p, f)| {
+            let mut v = serde_json::to_value(f).unwrap_or_default();
+            if let serde_json::Value::Object(m) = &mut v {
+                m.insert("rank".into(), p.into());
+            }
+            v
         })
         .collect();
-    let sent: f64 = all.iter().map(|v| v[2] as f64).sum();
-    let max = |i: usize| all.iter().map(|v| v[i] as f64).fold(0.0, f64::max);
-    let samples: f64 = all.iter().map(|v| v[4] as f64).sum();
+    let sent = sum_of(&all, |f| f.bytes_sent);
+    let samples = sum_of(&all, |f| f.samples);
+    let slowest = max_of(&all, |f| f.render_seconds);
+    let compositing = max_of(&all, |f| f.composite_seconds);
     let mut stats = r.stats;
     stats.samples = samples as u64;
     stats.interpolations = samples as u64;
-    stats.seconds = max(0) + max(1);
+    stats.seconds = slowest + compositing;
     let mut extra = serde_json::Map::new();
     extra.insert(
         "device".into(),
@@ -306,8 +362,8 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
             "rounds": sortlast::rounds(n),
             "level": s.out_of_core.level,
             "bytes_per_pixel": sent / pixels,
-            "render_seconds_max": max(0),
-            "composite_seconds_max": max(1),
+            "render_seconds_max": slowest,
+            "composite_seconds_max": compositing,
             "per_process": per_rank,
         }),
     );
@@ -323,8 +379,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
     )?;
     outputs.commit()?;
     if !a.quiet {
-        let slowest = max(0);
-        let mean = all.iter().map(|v| v[0] as f64).sum::<f64>() / n as f64;
+        let mean = sum_of(&all, |f| f.render_seconds) / n as f64;
         eprintln!(
             "wrote {} ({}×{}) on {n} process{}: render {:.3} s (slowest; mean {:.3} s, balance {:.0} %), compositing {:.3} s in {} rounds of radix-k {:?}, {:.1} bytes per pixel sent, {} read; {} samples",
             out.display(),
@@ -334,11 +389,11 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
             slowest,
             mean,
             if slowest > 0.0 { 100.0 * mean / slowest } else { 100.0 },
-            max(1),
+            compositing,
             sortlast::rounds(n).len(),
             sortlast::rounds(n),
             sent / pixels,
-            human_bytes(all.iter().map(|v| v[5] as u64).sum()),
+            human_bytes(sum_of(&all, |f| f.bytes_read) as u64),
             samples as u64,
         );
     }
@@ -518,7 +573,7 @@ pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
         "| method | frame (render + compositing) | render, slowest (mean) | wait | compositing | bytes sent / pixel | samples | PSNR vs 1 process |\n|---|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for (label, params) in &methods {
-        let mut runs: Vec<Vec<Vec<f32>>> = Vec::new();
+        let mut runs: Vec<Vec<Figures>> = Vec::new();
         let mut last = None;
         for k in 0..a.warmup + a.repeat {
             let r = sortlast::render(
@@ -533,7 +588,7 @@ pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
                 &never,
             )
             .with_context(|| format!("{label}, process {rank} of {n}"))?;
-            let all = ex.gather(1000, figures(&r))?;
+            let all = gather_figures(&ex, &r)?;
             if let (true, Some(all)) = (k >= a.warmup, all) {
                 runs.push(all);
             }
@@ -555,20 +610,25 @@ pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
         )?;
         let image = last.context("process 0 holds the image")?;
         let db = voxcast::metrics::psnr(&image, &alone)?;
-        let med =
-            |f: &dyn Fn(&Vec<Vec<f32>>) -> f64| vb::median(&runs.iter().map(f).collect::<Vec<_>>());
-        let max = |i: usize| {
-            move |all: &Vec<Vec<f32>>| all.iter().map(|v| v[i] as f64).fold(0.0, f64::max)
+        let med = |f: &dyn Fn(&[Figures]) -> f64| {
+            vb::median(&runs.iter().map(|all| f(all)).collect::<Vec<_>>())
         };
-        let render = med(&max(0));
-        let mean = med(&|all| all.iter().map(|v| v[0] as f64).sum::<f64>() / n as f64);
-        let composite = med(&max(1));
-        let wait = med(&max(6));
+        let render = med(&|all| max_of(all, |f| f.render_seconds));
+        let mean = med(&|all| sum_of(all, |f| f.render_seconds) / n as f64);
+        let composite = med(&|all| max_of(all, |f| f.composite_seconds));
+        let wait = med(&|all| max_of(all, |f| f.wait_seconds));
         let pixels = (params.width * params.height) as f64;
-        let bpp = med(&|all| all.iter().map(|v| v[2] as f64).sum::<f64>() / pixels);
-        let samples = med(&|all| all.iter().map(|v| v[4] as f64).sum::<f64>());
+        let bpp = med(&|all| sum_of(all, |f| f.bytes_sent) / pixels);
+        let samples = med(&|all| sum_of(all, |f| f.samples));
         let per_process: Vec<f64> = (0..n)
-            .map(|p| vb::median(&runs.iter().map(|all| all[p][0] as f64).collect::<Vec<_>>()))
+            .map(|p| {
+                vb::median(
+                    &runs
+                        .iter()
+                        .map(|all| all[p].render_seconds)
+                        .collect::<Vec<_>>(),
+                )
+            })
             .collect();
         table += &format!(
             "| {label} | {:.1} ms | {:.1} ms ({:.1}) | {:.1} ms | {:.1} ms | {bpp:.1} | {:.2} M | {} |\n",
