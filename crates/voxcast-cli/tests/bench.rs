@@ -3,22 +3,17 @@
 //! Markdown table, and bad input. Small images (64×64) keep them fast; every
 //! run gets its own cache folder through `VOXCAST_CACHE`.
 
-use serde_json::Value;
 use std::path::Path;
 use std::process::Output;
 
 mod common;
-use common::{stderr, voxcast_with};
+use common::{read_json, stderr, voxcast_with};
 
 fn bench(args: &[&str], cwd: &Path, cache: &Path) -> Output {
     let all: Vec<&str> = std::iter::once("bench")
         .chain(args.iter().copied())
         .collect();
     voxcast_with(&all, cwd, &[("VOXCAST_CACHE", &cache.to_string_lossy())])
-}
-
-fn read_json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 const FIELDS: [&str; 9] = [

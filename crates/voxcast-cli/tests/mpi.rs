@@ -5,7 +5,7 @@
 #![cfg(feature = "mpi")]
 
 mod common;
-use common::{stderr, voxcast};
+use common::{read_json, stderr, voxcast};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -30,12 +30,9 @@ fn mpirun(n: usize, args: &[&str], cwd: &Path) -> Output {
         .expect("run mpirun (Debian: openmpi-bin)")
 }
 
+/// The PSNR of B against A; identical images count as infinite.
 fn psnr(a: &str, b: &str, cwd: &Path) -> f64 {
-    let o = voxcast(&["compare", a, b, "--json"], cwd);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    // Identical images have no PSNR (infinite).
-    j["psnr_db"].as_f64().unwrap_or(f64::INFINITY)
+    common::psnr(a, b, cwd).unwrap_or(f64::INFINITY)
 }
 
 fn teapot() -> Option<String> {
@@ -96,9 +93,7 @@ fn three_processes_give_the_one_process_picture_from_either_side() {
             assert!(said.contains("early ray termination is off"), "{said}");
             let db = psnr("one.png", "many.png", d);
             assert!(db >= 60.0, "{n} processes, {args:?}: {db:.1} dB");
-            let j: serde_json::Value =
-                serde_json::from_str(&std::fs::read_to_string(d.join("many.json")).unwrap())
-                    .unwrap();
+            let j = read_json(&d.join("many.json"));
             assert_eq!(j["mpi"]["processes"], n);
             assert_eq!(j["mpi"]["per_process"].as_array().unwrap().len(), n);
             let bpp = j["mpi"]["bytes_per_pixel"].as_f64().unwrap();
@@ -178,8 +173,7 @@ fn animate_spreads_the_frames_and_writes_the_one_process_frames() {
     let said = stderr(&o);
     assert!(o.status.success(), "{said}");
     assert!(said.contains("frames spread over the processes"), "{said}");
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("s.json")).unwrap()).unwrap();
+    let j = read_json(&d.join("s.json"));
     let frames: Vec<u64> = j
         .as_array()
         .unwrap()
@@ -227,8 +221,7 @@ fn bench_under_mpi_reports_each_process_and_skips_whole_ray_methods() {
         table.contains("| uniform |") && table.contains("| jitter |"),
         "{table}"
     );
-    let j: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("b.json")).unwrap()).unwrap();
+    let j = read_json(&d.join("b.json"));
     assert_eq!(j["processes"], 2);
     let methods = j["methods"].as_array().unwrap();
     assert_eq!(methods.len(), 2);

@@ -3,7 +3,7 @@
 //! level chosen by zoom, and every refusal with its reason.
 
 mod common;
-use common::{stderr, voxcast};
+use common::{psnr, stderr, voxcast};
 use std::path::Path;
 
 fn ok(args: &[&str], cwd: &Path) -> String {
@@ -18,13 +18,6 @@ fn fails(args: &[&str], cwd: &Path) -> String {
     let e = stderr(&o);
     assert!(!e.contains("panicked"), "{e}");
     e
-}
-
-fn psnr(a: &str, b: &str, cwd: &Path) -> Option<f64> {
-    let o = voxcast(&["compare", a, b, "--json"], cwd);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    j["psnr_db"].as_f64()
 }
 
 #[test]

@@ -30,3 +30,16 @@ pub fn stderr(o: &Output) -> String {
 pub fn in_ci() -> bool {
     std::env::var("CI").is_ok_and(|v| v == "true" || v == "1")
 }
+
+/// A JSON file the command wrote.
+pub fn read_json(path: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// `voxcast compare A B`'s PSNR in dB; `None` for identical images.
+pub fn psnr(a: &str, b: &str, cwd: &Path) -> Option<f64> {
+    let o = voxcast(&["compare", a, b, "--json"], cwd);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    j["psnr_db"].as_f64()
+}
