@@ -59,3 +59,54 @@ fn wrf_without_the_feature_says_how_to_build() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--features wrf"), "{}", stderr(&o));
 }
+
+/// The paper's path end to end with the feature on: `voxcast info` reads the
+/// WRF file, `voxcast cloud --from-wrf` seeds a cloud from its QCLOUD at one
+/// time index, and the frame renders.
+#[cfg(feature = "wrf")]
+#[test]
+fn a_cloud_seeded_from_wrf_renders() {
+    let Some(k) = voxcast::testdata::data_path("wrf_katrina/mercator_sample.nc") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let k = k.to_string_lossy().into_owned();
+    let o = voxcast(&["info", &k, "--var", "QCLOUD", "--json"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = voxcast(
+        &[
+            "cloud",
+            "--from-wrf",
+            &k,
+            "--time",
+            "2",
+            "--grid",
+            "48,48,16",
+            "-o",
+            "w",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = voxcast(&["info", "w", "--json"], dir.path());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(j["max"].as_f64().unwrap() > 0.0, "an empty cloud: {j}");
+    let o = voxcast(
+        &[
+            "render", "w", "--tf", "cloud", "--method", "lod", "--size", "64x48", "-o", "w.png",
+            "-q",
+        ],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.path().join("w.png").is_file());
+    // A variable the file does not have is named in the error.
+    let o = voxcast(
+        &["cloud", "--from-wrf", &k, "--var", "NOPE", "-o", "x", "-q"],
+        dir.path(),
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("NOPE"), "{}", stderr(&o));
+}
