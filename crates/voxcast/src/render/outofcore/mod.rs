@@ -38,7 +38,7 @@ use crate::error::{Error, Result};
 use crate::image::Image;
 use crate::render::shading::BlinnPhong;
 use crate::render::{Method, Order, RenderParams, RenderStats};
-use crate::transfer::{srgb_to_linear, Lut, TransferFunction};
+use crate::transfer::{srgb_to_linear, Lut, TransferFunction, LUT_SIZE};
 use crate::volume::{ChunkRange, ChunkedSource, Level};
 use brick::{BrickBuf, CellRanges, FrameArgs};
 use cache::ChunkCache;
@@ -445,16 +445,6 @@ impl<'s> OutOfCore<'s> {
         let n_chunks = counts.iter().product::<u64>() as usize;
         let ranges = self.ranges(lidx);
         let transparent = |lo: f32, hi: f32| range_transparent(tf, window, lo, hi);
-        // Whether values in `[lo, hi]` may show, with a table entry of margin
-        // on each side (a value is classified by its nearest entry).
-        let margin = 1.0 / (crate::transfer::LUT_SIZE - 1) as f32;
-        let visible = |lo: f32, hi: f32| {
-            let (a, b) = (
-                (lo - window[0]) / (window[1] - window[0]) - margin,
-                (hi - window[0]) / (window[1] - window[0]) + margin,
-            );
-            b >= 0.0 && tf.max_opacity_in(a.max(0.0), b.min(1.0)) > 0.0
-        };
         let known_empty = |r: &ChunkRange| known_empty(tf, window, r);
 
         // The plan: the bricks to march, in visibility order.
@@ -545,6 +535,27 @@ impl<'s> OutOfCore<'s> {
 
         let lut = Lut::new(tf, params.step);
         let q = lut.premultiplied(st / unit);
+        // Whether a sample interpolated from values in `[lo, hi]` may show:
+        // its table entry (the nearest, `Lut::index`) lies between those of
+        // `lo` and `hi`, and the march skips the entries of zero opacity.
+        // `shown[i]` is the first entry from `i` on that has opacity. (A
+        // margin of a whole entry, as before, made every cell of zeros
+        // "visible" under a map whose opacity rises from 0, such as the
+        // cloud's: nothing was skipped.)
+        let mut shown = vec![LUT_SIZE; LUT_SIZE + 1];
+        for i in (0..LUT_SIZE).rev() {
+            shown[i] = if q[i][3] > 0.0 { i } else { shown[i + 1] };
+        }
+        let visible = |lo: f32, hi: f32| {
+            // A hair of margin for the interpolation's rounding.
+            const EPS: f32 = 1e-5;
+            let s = window[1] - window[0];
+            let (a, b) = ((lo - window[0]) / s, (hi - window[0]) / s);
+            let (Some(ia), Some(ib)) = (Lut::index((a - EPS).max(0.0)), Lut::index(b + EPS)) else {
+                return false;
+            };
+            shown[ia] <= ib
+        };
         let (emission, absorption) = match params.optical {
             crate::render::OpticalModel::AbsorptionOnly => (0.0, 1.0),
             crate::render::OpticalModel::EmissionOnly => (1.0, 0.0),

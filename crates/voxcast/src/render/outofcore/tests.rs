@@ -283,3 +283,52 @@ fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_range
         );
     }
 }
+
+#[test]
+fn cells_of_zeros_are_skipped_under_a_map_whose_opacity_rises_from_zero() {
+    // A blob in a box of exact zeros, under the cloud map (opacity
+    // proportional to density from 0): the zeros' cells are transparent.
+    // A margin of a whole table entry once counted them as visible, and
+    // the out-of-core march took every sample of every brick.
+    let n = 64usize;
+    let data: Vec<f32> = (0..n * n * n)
+        .map(|i| {
+            let p = Vec3::new((i % n) as f32, (i / n % n) as f32, (i / (n * n)) as f32);
+            let r = (p - Vec3::splat(20.0)).length();
+            if r < 10.0 {
+                1.0 - r / 10.0
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let vol = Volume::new([n; 3], Vec3::ONE, Vec3::ZERO, VoxelData::F32(data.into())).unwrap();
+    let tf = TransferFunction::preset("cloud").unwrap();
+    let window = [0.0, 1.0];
+    let src = MemorySource::new(vol.clone(), 0, [32; 3])
+        .unwrap()
+        .with_ranges();
+    let ooc = OutOfCore::new(&src, level0(64 << 20));
+    let cam = camera(1.0, Projection::Perspective);
+    let no = AtomicBool::new(false);
+    let mut p = params(96, false);
+    p.jitter = false;
+    p.ert = 1.0;
+    let (skip, s_skip, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
+    let (_, s_in) = crate::render::render(&vol, &tf, window, &cam, &p, &|_, _| {}).unwrap();
+    p.skip_empty = false;
+    let (all, s_all, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
+    let worst = worst_diff(&skip, &all);
+    assert!(worst < 1e-4, "skipping changed a pixel by {worst}");
+    // As few samples as the in-core march with its blocks (measured: 14906
+    // out of core against 20145 in core, and 48376 with the old margin);
+    // the packets skip cells inside the box of the visible ones.
+    let packets = crate::render::packet::level(crate::render::Simd::Auto).is_some();
+    assert!(
+        s_skip.samples * 5 <= s_in.samples * 6 && (!packets || s_skip.samples < s_all.samples),
+        "out of core {} samples ({} without skipping), in core {}",
+        s_skip.samples,
+        s_all.samples,
+        s_in.samples
+    );
+}
