@@ -24,7 +24,7 @@ fn main() {
             Command::Bench(a) => Some(cmd::mpi::bench(a, &world)),
             _ if world.size() == 1 => None,
             _ => Some(Err(anyhow::anyhow!(
-                "under mpirun, voxcast runs `render` and `bench` (the volume split over the processes) and `animate` (the frames spread over them) only; run other commands without mpirun"
+                "under mpirun, voxcast runs `render` and `bench` (the volume split over the processes) and `animate` (the frames shared among them) only; run other commands without mpirun"
             ))),
         };
         match result {

@@ -192,6 +192,103 @@ fn animate_spreads_the_frames_and_writes_the_one_process_frames() {
 }
 
 #[test]
+fn animate_chooses_whole_or_split_frames_for_a_partial_last_round_and_both_match() {
+    let smv =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fds_room/room_smoke.smv");
+    if !smv.is_file() {
+        assert!(!common::in_ci(), "{} is missing", smv.display());
+        return;
+    }
+    let smv = smv.to_string_lossy().into_owned();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Without the room's obstructions a frame can be split; early ray
+    // termination off, as a split frame has it, so that whole and split
+    // frames both match the one-process frames.
+    let args = [
+        "animate",
+        &smv,
+        "--size",
+        "64x48",
+        "--frames",
+        "0..7",
+        "--geometry",
+        "none",
+        "--ert",
+        "1",
+    ];
+    let mut one = args.to_vec();
+    one.extend(["-o", "one/", "-q"]);
+    let o = voxcast(&one, d);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // 7 frames on 3 processes: 2 rounds of whole frames, then frame 6
+    // whole or over all 3, as a pilot on it finds faster.
+    let mut many = args.to_vec();
+    many.extend(["-o", "many/"]);
+    let o = mpirun(3, &many, d);
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(
+        said.contains("pilot on frame 6")
+            && (said.contains("6 whole frames spread over the processes (2 rounds), then 1 frame split over 3 processes each")
+                || said.contains("7 whole frames spread over the processes (3 rounds)")),
+        "{said}"
+    );
+    // The last round split, forced: 2 rounds of 3 whole frames, then
+    // frame 6 over all 3 processes.
+    let mut split = args.to_vec();
+    split.extend(["-o", "split/", "--mpi-frames", "split"]);
+    let o = mpirun(3, &split, d);
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(
+        said.contains("6 whole frames spread over the processes (2 rounds), then 1 frame split over 3 processes each")
+            && !said.contains("pilot"),
+        "{said}"
+    );
+    // 6 frames on 4 processes: one round whole, then two groups of two at
+    // once, one of them led by process 2, which sends its frame to 0.
+    let mut groups = args.to_vec();
+    groups[5] = "1..7";
+    groups.extend(["-o", "groups/", "--mpi-frames", "split"]);
+    let o = mpirun(4, &groups, d);
+    let said = stderr(&o);
+    assert!(o.status.success(), "{said}");
+    assert!(
+        said.contains("4 whole frames spread over the processes (1 round), then 2 frames split over 2 processes each"),
+        "{said}"
+    );
+    for k in 0..6 {
+        let (a, b) = (
+            format!("one/frame_{:05}.png", k + 1),
+            format!("groups/frame_{k:05}.png"),
+        );
+        let p = psnr(&a, &b, d);
+        assert!(p >= 60.0, "{b}: {p:.1} dB against {a}");
+    }
+    for k in 0..7 {
+        let name = format!("frame_{k:05}.png");
+        for other in ["many", "split"] {
+            let p = psnr(&format!("one/{name}"), &format!("{other}/{name}"), d);
+            assert!(p >= 60.0, "{other}/{name}: {p:.1} dB against one process");
+        }
+    }
+    // A method that needs the whole ray is never split, and asking for it
+    // names the reason.
+    let mut adaptive = args.to_vec();
+    adaptive.extend(["-o", "a/", "--method", "adaptive", "--mpi-frames", "split"]);
+    let o = mpirun(2, &adaptive, d);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("adaptive"), "{}", stderr(&o));
+    // Outside mpirun the flag is refused.
+    let mut alone = args.to_vec();
+    alone.extend(["-o", "b/", "--mpi-frames", "spread"]);
+    let o = voxcast(&alone, d);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("only under mpirun"), "{}", stderr(&o));
+}
+
+#[test]
 fn bench_under_mpi_reports_each_process_and_skips_whole_ray_methods() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();

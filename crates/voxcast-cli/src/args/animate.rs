@@ -49,4 +49,22 @@ pub struct AnimateArgs {
     /// No progress bar or summary.
     #[arg(short, long)]
     pub quiet: bool,
+    /// Under mpirun: how the frames are shared among the processes. Whole
+    /// frames are spread over the processes, N at a time; the frames of a
+    /// last, partial round may instead each be split over a group of
+    /// processes and composited, so that no process idles. auto: a pilot
+    /// render of one such frame, whole and split, decides (and is
+    /// reported); spread: never split; split: always split them.
+    #[cfg(feature = "mpi")]
+    #[arg(long, value_enum, value_name = "HOW", default_value_t = MpiFrames::Auto, help_heading = "Frames")]
+    pub mpi_frames: MpiFrames,
+}
+
+/// How `animate` shares the frames among MPI processes (`--mpi-frames`).
+#[cfg(feature = "mpi")]
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MpiFrames {
+    Auto,
+    Spread,
+    Split,
 }

@@ -17,6 +17,8 @@ mod simulate;
 mod view;
 
 pub use animate::AnimateArgs;
+#[cfg(feature = "mpi")]
+pub use animate::MpiFrames;
 pub use bench::BenchArgs;
 pub use bench_frames::BenchFramesArgs;
 pub use cloud::CloudArgs;

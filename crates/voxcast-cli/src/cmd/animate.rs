@@ -54,6 +54,10 @@ pub type Emit<'a> =
 pub type Frames<'a> = dyn FnMut(&Scene, &Series, &[usize], &mut Emit<'_>) -> Result<()> + 'a;
 
 pub fn run(a: AnimateArgs) -> Result<()> {
+    #[cfg(feature = "mpi")]
+    if a.mpi_frames != crate::args::MpiFrames::Auto {
+        bail!("--mpi-frames: frames are shared among processes only under mpirun (mpirun -np N voxcast animate …)");
+    }
     run_with(&a, &mut |scene, series, frames, emit| {
         for &i in frames {
             let v = series.load(i, &scene.input.options)?;
