@@ -159,8 +159,8 @@ fn describe(jobs: &[Job], n: usize, ert: f32, why_whole: Option<&str>) -> String
 /// One rendered frame: its time, image and counts.
 type Frame = (f64, voxcast::Image, voxcast::RenderStats);
 
-/// Renders frame `i` (position `pos`, job `job`) on this process if it
-/// takes part; `Some` on the process that ends up with the image.
+/// Renders frame `i` as `job` says (this process takes part); `Some` on
+/// the process that ends up with the image.
 fn render_job(
     scene: &Scene,
     series: &Series,
@@ -213,8 +213,6 @@ fn render_job(
 
 /// How the frames are shared, the same on every process.
 struct Shared {
-    /// The scene.
-    scene: Scene,
     /// Each frame's job.
     jobs: Vec<Job>,
     /// This process's group, if it splits a frame.
@@ -257,10 +255,11 @@ fn share(
     }
     let mut pilot_note = None;
     if a.mpi_frames == MpiFrames::Auto {
-        if let Some(pos) = jobs.iter().position(is_split) {
-            let Job::Split { size, .. } = jobs[pos] else {
-                unreachable!()
-            };
+        let first_split = jobs.iter().enumerate().find_map(|(pos, j)| match *j {
+            Job::Split { size, .. } => Some((pos, size)),
+            Job::Whole(_) => None,
+        });
+        if let Some((pos, size)) = first_split {
             let in_first = jobs[pos].has(rank);
             let times = pilot(world, scene, series, frames[pos], group.as_ref(), in_first)
                 .with_context(|| format!("the pilot on frame {}", frames[pos]))?;
@@ -299,7 +298,6 @@ fn share(
         }
     }
     Ok(Shared {
-        scene: scene.clone(),
         jobs,
         group,
         why_whole,
@@ -401,9 +399,7 @@ pub fn animate(a: &AnimateArgs, world: &SimpleCommunicator) -> Result<()> {
     let (rank, n) = (world.rank() as usize, world.size() as usize);
     if rank != 0 {
         let (scene, series, frames) = super::super::animate::plan(a)?;
-        let Shared {
-            scene, jobs, group, ..
-        } = share(a, world, &scene, &series, &frames)?;
+        let Shared { jobs, group, .. } = share(a, world, &scene, &series, &frames)?;
         for (&i, &job) in frames.iter().zip(&jobs) {
             if !job.has(rank) {
                 continue;
@@ -430,9 +426,7 @@ pub fn animate(a: &AnimateArgs, world: &SimpleCommunicator) -> Result<()> {
     let mut split_seconds = Vec::new();
     super::super::animate::run_with(a, &mut |scene, series, frames, emit| {
         let shared = share(a, world, scene, series, frames)?;
-        let Shared {
-            scene, jobs, group, ..
-        } = &shared;
+        let Shared { jobs, group, .. } = &shared;
         if !a.quiet {
             if let Some(p) = &shared.pilot {
                 eprintln!("{p}");
