@@ -3,7 +3,7 @@
 //! (chunks of 64³ in memory, the cache warm after a first frame), with the
 //! time ratio and the PSNR between the two images.
 //!
-//! cargo run --release --example outofcore -- ../shared/data/teapot_ct/slices [512] [budget]
+//! cargo run --release --example outofcore -- ../shared/data/teapot_ct/slices [512] [budget] [tf]
 
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
@@ -26,7 +26,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(n) => voxcast::builtin::open(n)?,
         None => voxcast::io::open(path.as_ref(), &Default::default())?,
     };
-    let tf = TransferFunction::auto(&vol);
+    let tf = match args.get(3) {
+        Some(name) => TransferFunction::resolve(name, &vol)?,
+        None => TransferFunction::auto(&vol),
+    };
     let window = tf.window_for(&vol, None);
     let cam = CameraParams {
         azimuth: 30.0,
