@@ -109,7 +109,7 @@ impl GpuRenderer {
         let block_size = blocks.grid.size;
 
         // The camera, as the CPU frames it (the volume and the shapes).
-        let (mut lo, mut hi) = self.volume.world_bounds();
+        let (mut lo, mut hi) = self.volume.frame_bounds();
         if let Some((glo, ghi)) = geometry.and_then(|g| g.bounds()) {
             (lo, hi) = (lo.min(glo), hi.max(ghi));
         }
@@ -126,7 +126,7 @@ impl GpuRenderer {
         };
         let dims = self.volume.dims();
         let (box_lo, box_hi) = self.volume.sample_box();
-        let unit = self.volume.spacing().min_element();
+        let unit = self.volume.opacity_unit();
         let inv = glam::Vec3::ONE / self.volume.spacing();
         let origin = self.volume.origin();
         let (level_lo, level_hi) = if params.has_levels() {

@@ -198,7 +198,7 @@ impl ViewerApp {
             options,
             outcome,
         } = setup;
-        let (mut lo, mut hi) = volume.world_bounds();
+        let (mut lo, mut hi) = volume.frame_bounds();
         if let Some((glo, ghi)) = geometry.as_ref().and_then(|g| g.bounds()) {
             (lo, hi) = (lo.min(glo), hi.max(ghi));
         }

@@ -220,12 +220,12 @@ impl<'v> Renderer<'v> {
         camera.validate()?;
         let start = Instant::now();
         let volume = self.volume;
-        let (mut lo, mut hi) = volume.world_bounds();
+        let (mut lo, mut hi) = volume.frame_bounds();
         if let Some((glo, ghi)) = self.geometry.as_ref().and_then(|g| g.bounds()) {
             (lo, hi) = (lo.min(glo), hi.max(ghi));
         }
         let cam = Camera::fit(camera, lo, hi, params.width, params.height);
-        let unit = volume.spacing().min_element();
+        let unit = volume.opacity_unit();
         let derived = self.derived(params.block_size as usize);
         let max_gradient: &[f32] =
             if matches!(params.method, Method::AdaptiveMax | Method::Adaptive) {

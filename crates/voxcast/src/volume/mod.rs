@@ -218,6 +218,16 @@ pub struct Volume {
     pub active_voxels: Option<u64>,
     /// For time series: the time of this volume (the file's units).
     pub time: Option<f64>,
+    /// The length the transfer function's opacity refers to, when it is
+    /// not this volume's smallest spacing: a pyramid level read whole keeps
+    /// level 0's voxel, so that a coarse level is as opaque as the full
+    /// resolution (as the out-of-core renderer has it). See
+    /// [`Volume::opacity_unit`].
+    pub opacity_unit: Option<f32>,
+    /// The box the camera frames, when it is not this volume's extent: a
+    /// pyramid level read whole keeps level 0's, so that the view does not
+    /// move with the level (as out of core). See [`Volume::frame_bounds`].
+    pub frame: Option<(Vec3, Vec3)>,
 }
 
 /// The most voxels a volume may have (2³⁴ ≈ 17 billion): beyond any file a
@@ -282,6 +292,8 @@ impl Volume {
             variables: Vec::new(),
             active_voxels: None,
             time: None,
+            opacity_unit: None,
+            frame: None,
         })
     }
 
@@ -333,6 +345,14 @@ impl Volume {
     pub fn spacing(&self) -> Vec3 {
         self.spacing
     }
+    /// The length a step's opacity is measured in: the smallest spacing,
+    /// or the finer voxel this volume stands for ([`Volume::opacity_unit`]
+    /// field, e.g. level 0's for a pyramid level).
+    pub fn opacity_unit(&self) -> f32 {
+        self.opacity_unit
+            .filter(|u| u.is_finite() && *u > 0.0)
+            .unwrap_or(self.spacing.min_element())
+    }
     /// World position of voxel (0, 0, 0).
     pub fn origin(&self) -> Vec3 {
         self.origin
@@ -380,6 +400,11 @@ impl Volume {
     /// Value of voxel (i, j, k) in data units.
     pub fn value(&self, i: usize, j: usize, k: usize) -> f32 {
         self.data.get(self.index(i, j, k))
+    }
+    /// The box the camera is fitted to: the [`Volume::frame`] field, or
+    /// [`Volume::world_bounds`].
+    pub fn frame_bounds(&self) -> (Vec3, Vec3) {
+        self.frame.unwrap_or_else(|| self.world_bounds())
     }
     /// World-space extent of the box through the voxel centres:
     /// `(origin, origin + (dims − 1) ⊙ spacing)`.

@@ -669,6 +669,10 @@ impl ZarrStore {
         let mut v = Volume::new(l.dims.map(|d| d as usize), l.spacing, l.origin, data)?;
         v.name = Some(self.path.display().to_string());
         v.units = None;
+        // Opacity per level-0 voxel and the camera on level 0's box, as
+        // out of core: a coarse level looks like the full resolution.
+        v.opacity_unit = Some(self.levels[0].spacing.min_element());
+        v.frame = Some(crate::render::outofcore::world_bounds(&self.levels));
         Ok(v)
     }
 
