@@ -119,7 +119,11 @@ fn describe(jobs: &[Job], n: usize, ert: f32, why_whole: Option<&str>) -> String
         .filter(|j| matches!(j, Job::Split { .. }))
         .collect();
     let whole = jobs.len() - split.len();
-    let mut s = format!("animating {} frames on {n} processes: ", jobs.len());
+    let mut s = format!(
+        "animating {} on {}: ",
+        count(jobs.len(), "frame", "frames"),
+        count(n, "process", "processes")
+    );
     if whole > 0 {
         s += &format!(
             "{} spread over the processes ({})",
@@ -178,28 +182,8 @@ fn render_job(
     let Some(group) = group else {
         bail!("frame {i}: this process has no group to split it over");
     };
-    let src = memory_source(&mut prepared)?;
-    let ooc = OutOfCore::new(
-        &src,
-        OutOfCoreParams {
-            budget: default_budget(),
-            level: scene.input.options.level,
-            ..Default::default()
-        },
-    );
-    let ex = MpiExchange { world: group };
-    let r = sortlast::render(
-        &ex,
-        &ooc,
-        &prepared.tf,
-        prepared.window,
-        &scene.camera,
-        &scene.render,
-        false,
-        &|_, _| {},
-        &AtomicBool::new(false),
-    )?;
-    let all = gather_figures(&ex, &r)?;
+    let r = render_split(scene, &mut prepared, group)?;
+    let all = gather_figures(&MpiExchange { world: group }, &r)?;
     let (Some(image), Some(all)) = (r.image, all) else {
         return Ok(None);
     };
@@ -209,6 +193,35 @@ fn render_job(
     stats.interpolations = samples;
     stats.seconds = max_of(&all, |f| f.render_seconds) + max_of(&all, |f| f.composite_seconds);
     Ok(Some((time, image, stats)))
+}
+
+/// A frame (`prepared`, whose voxels move into a chunked source) split over
+/// the processes of `group` and composited by the sort-last renderer.
+fn render_split(
+    scene: &Scene,
+    prepared: &mut voxcast::scene::Prepared,
+    group: &SimpleCommunicator,
+) -> Result<sortlast::SortLast> {
+    let src = memory_source(prepared)?;
+    let ooc = OutOfCore::new(
+        &src,
+        OutOfCoreParams {
+            budget: default_budget(),
+            level: scene.input.options.level,
+            ..Default::default()
+        },
+    );
+    Ok(sortlast::render(
+        &MpiExchange { world: group },
+        &ooc,
+        &prepared.tf,
+        prepared.window,
+        &scene.camera,
+        &scene.render,
+        false,
+        &|_, _| {},
+        &AtomicBool::new(false),
+    )?)
 }
 
 /// How the frames are shared, the same on every process.
@@ -367,26 +380,7 @@ fn pilot(
         world.barrier();
         let t = Instant::now();
         if let (true, Some(group), Some(p)) = (in_group, group, prepared.as_mut()) {
-            let src = memory_source(p)?;
-            let ooc = OutOfCore::new(
-                &src,
-                OutOfCoreParams {
-                    budget: default_budget(),
-                    level: scene.input.options.level,
-                    ..Default::default()
-                },
-            );
-            sortlast::render(
-                &MpiExchange { world: group },
-                &ooc,
-                &p.tf,
-                p.window,
-                &small.camera,
-                &small.render,
-                false,
-                &|_, _| {},
-                &AtomicBool::new(false),
-            )?;
+            render_split(&small, p, group)?;
         }
         split = Some(t.elapsed().as_secs_f64());
     }
