@@ -46,6 +46,20 @@ fn teapot() -> Option<String> {
     }
 }
 
+/// The FDS room case (`None`, and skipped, where the data is missing
+/// outside CI).
+fn fds_room() -> Option<String> {
+    let p =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fds_room/room_smoke.smv");
+    if p.is_file() {
+        Some(p.to_string_lossy().into_owned())
+    } else {
+        assert!(!common::in_ci(), "{} is missing", p.display());
+        eprintln!("skipped: {} is missing", p.display());
+        None
+    }
+}
+
 #[test]
 fn three_processes_give_the_one_process_picture_from_either_side() {
     let Some(teapot) = teapot() else { return };
@@ -152,13 +166,9 @@ fn a_failure_on_one_process_ends_all_of_them() {
 
 #[test]
 fn animate_spreads_the_frames_and_writes_the_one_process_frames() {
-    let smv =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fds_room/room_smoke.smv");
-    if !smv.is_file() {
-        assert!(!common::in_ci(), "{} is missing", smv.display());
+    let Some(smv) = fds_room() else {
         return;
-    }
-    let smv = smv.to_string_lossy().into_owned();
+    };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let args = ["animate", &smv, "--size", "64x48", "--frames", "0..7"];
@@ -193,13 +203,9 @@ fn animate_spreads_the_frames_and_writes_the_one_process_frames() {
 
 #[test]
 fn animate_chooses_whole_or_split_frames_for_a_partial_last_round_and_both_match() {
-    let smv =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data/fds_room/room_smoke.smv");
-    if !smv.is_file() {
-        assert!(!common::in_ci(), "{} is missing", smv.display());
+    let Some(smv) = fds_room() else {
         return;
-    }
-    let smv = smv.to_string_lossy().into_owned();
+    };
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // Without the room's obstructions a frame can be split; early ray
