@@ -265,6 +265,88 @@ fn packets_give_the_scalar_pixels() {
     }
 }
 
+/// The step-per-block marches in the packets (each lane walks its blocks
+/// with the scalar march's own walk, run by run, and the vector loop
+/// samples the runs), at every level this CPU has, against the scalar
+/// loop: the three `adaptive` rules with and without S0's grouped reuse,
+/// `uniform` grouped, every stored type, skipping on and off, early
+/// termination on and off, flat and Phong, jitter on and off. The walk is
+/// the same code, so the counts are equal, not close.
+#[test]
+fn step_per_block_packets_give_the_scalar_pixels() {
+    let tf = TransferFunction {
+        color: vec![[0.0, 1.0, 0.5, 0.2], [1.0, 0.3, 0.6, 1.0]],
+        opacity: vec![[0.0, 0.0], [0.2, 0.0], [0.5, 0.6], [1.0, 1.0]],
+        window: None,
+    };
+    for vol in typed_volumes() {
+        let s = vol.stats();
+        let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
+        let (mut terminated, mut grouped_reuse) = (0, 0);
+        for (method, grouped) in [
+            (Method::Adaptive, false),
+            (Method::Adaptive, true),
+            (Method::AdaptiveS0, true),
+            (Method::AdaptiveMax, false),
+            (Method::Uniform, true),
+        ] {
+            for (skip_empty, jitter) in [(true, true), (false, false), (true, false)] {
+                for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
+                    let mut p = RenderParams {
+                        width: 45,
+                        height: 21,
+                        method,
+                        grouped,
+                        shading,
+                        skip_empty,
+                        ert,
+                        jitter,
+                        seed: 5,
+                        step: 0.37,
+                        background: [0.2, 0.1, 0.3],
+                        ..Default::default()
+                    };
+                    p.simd = Simd::Scalar;
+                    let (scalar, sc) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
+                    for (level, name) in simd_levels() {
+                        p.simd = level;
+                        let (simd, ss) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
+                        let d = max_diff(&simd, &scalar);
+                        let what = format!(
+                            "{name}: {}{} {:?} skip {skip_empty} jitter {jitter} ert {ert} shading {shading}",
+                            method.name(),
+                            if grouped { "+grouped" } else { "" },
+                            vol.scalar_type()
+                        );
+                        assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
+                        assert_eq!(ss.rays_hit, sc.rays_hit, "{what}");
+                        assert_eq!(ss.samples, sc.samples, "{what}");
+                        assert_eq!(ss.interpolations, sc.interpolations, "{what}");
+                        assert_eq!(
+                            ss.gradient_interpolations, sc.gradient_interpolations,
+                            "{what}"
+                        );
+                        assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
+                        assert!(sc.samples > 0, "{what}: nothing sampled");
+                    }
+                    terminated += sc.early_terminated;
+                    if grouped && sc.interpolations < sc.samples {
+                        grouped_reuse += 1;
+                    }
+                }
+            }
+        }
+        assert!(
+            terminated > 0,
+            "no ray terminated early: the test lost its teeth"
+        );
+        assert!(
+            grouped_reuse > 0,
+            "grouping reused nothing: the test lost its teeth"
+        );
+    }
+}
+
 /// One-voxel axes (a single slice, a single row) and a two-voxel x axis:
 /// the packets' neighbour fetches (the u8 z-paired copy, the +x pair) must
 /// read the same corners as the scalar loop there. (This found the scalar

@@ -34,7 +34,7 @@ impl Weights {
     /// `(emitted colour, absorbed fraction)` of a step of premultiplied
     /// colour `e` and opacity `alpha`.
     #[inline(always)]
-    fn apply(self, e: Vec3, alpha: f32) -> (Vec3, f32) {
+    pub(super) fn apply(self, e: Vec3, alpha: f32) -> (Vec3, f32) {
         (e * self.emission, alpha * self.absorption)
     }
 }
@@ -92,6 +92,26 @@ pub(super) struct Front {
     /// The threshold, or ∞ when termination is off (`ert` = 1).
     stop: f32,
     w: Weights,
+}
+
+impl Front {
+    /// A ray's compositor that goes on from premultiplied colour and
+    /// opacity `acc` (the SIMD packets' lanes, between their runs).
+    #[inline(always)]
+    pub fn resume(acc: Vec4, w: Weights, stop: f32) -> Front {
+        Front {
+            c: acc.truncate(),
+            a: acc.w,
+            stop,
+            w,
+        }
+    }
+
+    /// The premultiplied colour and opacity so far.
+    #[inline(always)]
+    pub fn acc(&self) -> Vec4 {
+        self.c.extend(self.a)
+    }
 }
 
 impl Composite for Front {

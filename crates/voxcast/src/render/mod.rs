@@ -42,7 +42,7 @@ use crate::volume::{Grid, GridVisitor, Volume, Voxel};
 use composite::{BackToFront, FrontToBack, Weights};
 use glam::Vec3;
 pub use march::{AdaptiveParams, ThresholdParams};
-use march::{BlockMax, Classified, Fixed, Midpoint, Steps, Threshold};
+use march::{BlockMax, Classified, Fixed, Level, Midpoint, Steps, Threshold};
 use ray::{Frame, Marcher, Sampler};
 use sample::{Flat, Grouped, Phong, Shade, Trilinear};
 use shading::BlinnPhong;
@@ -440,16 +440,21 @@ impl Job<'_> {
         };
         let k = p.adaptive_k_ref();
         match p.method {
-            Method::Uniform | Method::Jitter => match self.packets(f, &t, None) {
-                Some(out) => out,
-                None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
-            },
-            Method::Adaptive => {
-                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Classified(&self.block_k), k))
+            Method::Uniform | Method::Jitter if !p.grouped => {
+                match self.packets::<T, ()>(f, &t, None, None) {
+                    Some(out) => out,
+                    None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
+                }
             }
-            Method::AdaptiveS0 => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Midpoint, k)),
+            Method::Uniform | Method::Jitter => {
+                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Fixed, k))
+            }
+            Method::Adaptive => {
+                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Classified(&self.block_k), k))
+            }
+            Method::AdaptiveS0 => self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Midpoint, k)),
             Method::AdaptiveMax => {
-                self.grouped::<T, C, Sh, _>(f, sh, &t.steps(BlockMax(&self.block_k), k))
+                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(BlockMax(&self.block_k), k))
             }
             Method::Threshold => {
                 let alphas: Vec<_> = p
@@ -491,7 +496,7 @@ impl Job<'_> {
                     steps: &steps,
                     tables: &tables,
                 };
-                if let Some(out) = self.packets(f, &t, Some(imp)) {
+                if let Some(out) = self.packets::<T, ()>(f, &t, Some(imp), None) {
                     return out;
                 }
                 let m = stochastic::Importance {
@@ -533,19 +538,50 @@ impl Job<'_> {
         Vec3::from(self.params.background.map(srgb_to_linear))
     }
 
-    /// A fixed-step render through the SIMD ray packets (packet/), where
+    /// A step-per-block march (`uniform` grouped, the `adaptive` family):
+    /// in the SIMD packets where the CPU and the render allow, else the
+    /// scalar loop.
+    fn stepped<T: Voxel, C: composite::Order, Sh: Shade, L: Level>(
+        &self,
+        f: &Frame<'_, T>,
+        sh: Sh,
+        t: &Tables,
+        m: &Steps<'_, L>,
+    ) -> Option<(Image, RenderStats)> {
+        if packet::level(self.params.simd).is_some() {
+            // The levels' tables end to end, for the lanes' offsets.
+            let tables: Vec<[f32; 4]> = t
+                .level_tables
+                .iter()
+                .flat_map(|q| q.iter().copied())
+                .collect();
+            let runs = packet::Adapt {
+                steps: m,
+                tables: &tables,
+                grouped: self.params.grouped,
+            };
+            if let Some(out) = self.packets(f, t, None, Some(&runs)) {
+                return out;
+            }
+        }
+        self.grouped::<T, C, Sh, _>(f, sh, m)
+    }
+
+    /// A render through the SIMD ray packets (packet/) — a fixed step,
+    /// `importance` (`imp`) or a step-per-block march (`runs`) — where
     /// the CPU and the render allow; `None` where the scalar loop must run.
-    fn packets<T: Voxel>(
+    fn packets<T: Voxel, R: packet::Runs<T>>(
         &self,
         f: &Frame<'_, T>,
         t: &Tables,
         imp: Option<packet::Imp<'_>>,
+        runs: Option<&R>,
     ) -> Option<Option<(Image, RenderStats)>> {
         let p = self.params;
         // The shading `shaded` picks.
         let shading = p.shading.then(BlinnPhong::default);
         let level = packet::level(p.simd)?;
-        if p.grouped
+        if (p.grouped && runs.is_none())
             || shading.is_some_and(|bp| !packet::shades(&bp))
             || p.order != Order::FrontToBack
             || self.surface.is_some()
@@ -559,9 +595,10 @@ impl Job<'_> {
                 .get_or_init(|| packet::z_pairs(v, self.volume.dims())),
             _ => &[][..],
         };
-        // `importance` skips nothing (its pdf has no mass in empty blocks).
-        let empty: Option<Vec<i32>> =
-            (f.skip_empty && imp.is_none()).then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
+        // `importance` skips nothing (its pdf has no mass in empty blocks);
+        // a step-per-block march skips in its walk.
+        let empty: Option<Vec<i32>> = (f.skip_empty && imp.is_none() && runs.is_none())
+            .then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
         let pk = packet::Packets {
             f,
             q: &t.level_tables[0],
@@ -574,6 +611,7 @@ impl Job<'_> {
             z_pairs,
             level,
             imp,
+            runs,
         };
         let (passes, bg) = (self.passes(), self.background());
         Some(tiles::render_tile_rows(

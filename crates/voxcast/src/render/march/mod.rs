@@ -16,8 +16,10 @@ mod steps;
 mod threshold;
 
 #[cfg(test)]
-pub(super) use steps::classified_level;
-pub(super) use steps::{BlockMax, Classified, Fixed, Midpoint, Steps};
+pub(super) use steps::{classified_level, round_log2};
+pub(super) use steps::{
+    BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps,
+};
 pub(super) use threshold::Threshold;
 
 use glam::Vec3;
@@ -388,5 +390,41 @@ mod tests {
         assert!((sum / 10_000.0 - 0.5).abs() < 0.01);
         assert_eq!(pixel_random(1, 2, 3), pixel_random(1, 2, 3));
         assert_ne!(pixel_random(1, 2, 3), pixel_random(2, 2, 3));
+    }
+
+    /// The block walk's `round(log₂ x)` from the bits is exact (against
+    /// f64) over twelve decades, powers of two and the √2 boundaries
+    /// included, and agrees with `log2f` + `roundf` away from them.
+    #[test]
+    fn round_log2_is_log2_rounded() {
+        let exact = |y: f32| (y as f64).log2().round() as i32;
+        let mut x = 1e-6f32;
+        let (mut n, mut same) = (0, 0);
+        while x < 1e6 {
+            for y in [
+                x,
+                f32::from_bits(x.to_bits() + 1),
+                f32::from_bits(x.to_bits() - 1),
+            ] {
+                assert_eq!(round_log2(y), exact(y), "x = {y:e}");
+                same += (round_log2(y) == y.log2().round() as i32) as usize;
+                n += 1;
+            }
+            x *= 1.000_37;
+        }
+        for j in -20..20 {
+            let p = 2f32.powi(j);
+            let r = p * std::f32::consts::SQRT_2;
+            for y in [
+                p,
+                r,
+                f32::from_bits(r.to_bits() - 1),
+                f32::from_bits(r.to_bits() + 1),
+            ] {
+                assert_eq!(round_log2(y), exact(y), "x = {y:e}");
+            }
+        }
+        assert!(n > 100_000 && same > n - n / 1000, "{same} of {n}");
+        assert!(round_log2(0.0) < -100 && round_log2(f32::INFINITY) > 100);
     }
 }

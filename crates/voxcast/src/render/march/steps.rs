@@ -140,10 +140,31 @@ pub(in crate::render) fn classified_level(
     }
     // The allowed step, in base steps.
     let x = k_ref / (k * distance);
-    let j = (x.log2().round() as i32).clamp(lo, hi);
+    let j = round_log2(x).clamp(lo, hi);
     // The largest group that keeps reuse within the allowed step: ⌊x/2^j⌋
     // samples of level j, at least 1 and at most S0's 3.
-    (j, (x / 2f32.powi(j)).floor().clamp(1.0, 3.0) as u32)
+    (j, (x / exp2i(j)).floor().clamp(1.0, 3.0) as u32)
+}
+
+/// `round(log₂ x)` for `x > 0`, exactly, from its bits: the exponent, plus
+/// one where the mantissa exceeds √2. (`log2f` then `roundf` are two
+/// library calls per block and ray in the block walk, and round the wrong
+/// way within a few ulps of the √2 boundaries, where `log2f` returns an
+/// exact half.) Zero and subnormals give −127, ∞ and NaN 128: callers
+/// clamp to their levels.
+#[inline(always)]
+pub(in crate::render) fn round_log2(x: f32) -> i32 {
+    let b = x.to_bits() & 0x7fff_ffff;
+    let e = (b >> 23) as i32 - 127;
+    // The mantissa bits of the first f32 above √2 (1.41421366); the one
+    // below, 1.41421354, is under √2.
+    e + ((b & 0x7f_ffff) >= 0x35_04f4) as i32
+}
+
+/// `2^j` for a level `j` (−126…127), exactly.
+#[inline(always)]
+fn exp2i(j: i32) -> f32 {
+    f32::from_bits(((j + 127) as u32) << 23)
 }
 
 /// A step-per-block marcher: the level rule and the step tables.
@@ -162,11 +183,11 @@ pub(in crate::render) struct Steps<'a, L> {
 /// The last sample of an interval, waiting for its stretch: position,
 /// entry, and emitted colour and opacity for a full step.
 #[derive(Clone, Copy)]
-struct Pending {
-    t: f32,
-    entry: usize,
-    e: Vec3,
-    a: f32,
+pub(in crate::render) struct Pending {
+    pub t: f32,
+    pub entry: usize,
+    pub e: Vec3,
+    pub a: f32,
 }
 
 /// Composites `p` over the stretch up to `t_next` (opacity corrected for
@@ -188,7 +209,7 @@ impl<L> Steps<'_, L> {
     fn level_of(&self, k: f32, t_out: f32, tm: f32) -> i32 {
         let f = k * t_out / tm.max(1e-6);
         if f > 0.0 {
-            ((self.k_ref / f).log2().round() as i32).clamp(self.level_lo, self.level_hi)
+            round_log2(self.k_ref / f).clamp(self.level_lo, self.level_hi)
         } else {
             self.level_hi
         }
@@ -198,12 +219,12 @@ impl<L> Steps<'_, L> {
 /// A run of samples `n0..n1` (indices on the grid `t₀ + n·s`) at level
 /// index `li`.
 #[derive(Clone, Copy)]
-struct Run {
-    n0: u32,
-    n1: u32,
-    li: usize,
+pub(in crate::render) struct Run {
+    pub n0: u32,
+    pub n1: u32,
+    pub li: usize,
     /// The group cap of grouped reuse ([`Level`]).
-    cap: u32,
+    pub cap: u32,
 }
 
 impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
@@ -238,73 +259,18 @@ impl<T: Voxel, L: Level> Marcher<T> for Steps<'_, L> {
                 None => false,
             };
         }
-        let walker = BlockWalker::new(
-            seg.o,
-            seg.d,
-            seg.walk.0,
-            seg.t_out,
-            f.block_size,
-            f.block_counts,
-        )
-        .staying();
-        // Past `t_stop` every block is empty: the walk ends there once no
-        // sample waits for its stretch.
-        let t_stop = seg.walk.1;
-        let mut run: Option<Run> = None;
-        for (ta, tb, b) in walker {
-            if ta >= t_stop && pending.is_none() && run.is_none() {
-                break;
-            }
-            // A block the transfer function makes transparent takes the
-            // longest step, whatever the rule.
-            let (j, cap) = if !L::FIXED && f.empty[b] {
-                (self.level_hi, u32::MAX)
-            } else {
-                self.rule.level(self, f, seg, (b, ta, tb), n)
-            };
-            let li = (j - self.level_lo) as usize;
-            let st = self.level_steps[li];
-            let n0 = ((ta - seg.t0) / st).ceil().max(0.0);
-            let n1 = ((tb - seg.t0) / st).ceil().max(0.0);
-            if n1 <= n0 {
-                continue;
-            }
-            let (n0, n1) = (n0 as u32, n1 as u32);
-            let skip = f.skip_empty && f.empty[b];
-            if let Some(r) = &mut run {
-                if !S::PER_BLOCK && !skip && r.li == li && r.n1 == n0 {
-                    // Same step, contiguous: the interval grows.
-                    r.n1 = n1;
-                    continue;
+        let mut w = RunWalk::new(f, *seg);
+        loop {
+            match w.next(self, f, S::PER_BLOCK, c, n) {
+                Next::Run(r) => {
+                    if self.sample_run(f, seg, r, &mut w.pending, s, c, n) {
+                        return true;
+                    }
                 }
-            }
-            if let Some(r) = run.take() {
-                if self.sample_run(f, seg, r, &mut pending, s, c, n) {
-                    return true;
-                }
-            }
-            // The pending sample's stretch ends at this block's first
-            // sample, whether or not the block is skipped.
-            if let Some(p) = pending.take() {
-                if flush(f, p, seg.t0 + n0 as f32 * st, c) {
-                    return true;
-                }
-            }
-            if skip {
-                s.restart();
-            } else {
-                run = Some(Run { n0, n1, li, cap });
+                Next::Ended => return false,
+                Next::Terminated => return true,
             }
         }
-        if let Some(r) = run {
-            if self.sample_run(f, seg, r, &mut pending, s, c, n) {
-                return true;
-            }
-        }
-        if let Some(p) = pending {
-            return flush(f, p, seg.t_end().max(p.t), c);
-        }
-        false
     }
 }
 
@@ -345,5 +311,140 @@ impl<L> Steps<'_, L> {
             *pending = Some(Pending { t, entry, e, a });
         }
         false
+    }
+}
+
+/// A step-per-block march handed out run by run, for the SIMD packets
+/// (`render/packet/`): each lane walks its blocks with one of these in
+/// scalar code — once per run, not per sample — and marches the run's
+/// samples in the vector loop. The walk is [`Steps::march`]'s, step for
+/// step: the same blocks, levels, merged runs and group caps; the caller
+/// marches samples `n0..n1` of each run and leaves the last in
+/// [`RunWalk::pending`], which the walk composites over its stretch (up to
+/// the next run's first sample, a skipped block's, or the exit) before it
+/// hands out the next run.
+pub(in crate::render) struct RunWalk {
+    pub seg: Segment,
+    walker: BlockWalker,
+    /// The current run, still growing.
+    cur: Option<Run>,
+    /// The block that ended the run handed out last, not yet taken.
+    held: Option<(Run, bool)>,
+    /// The last sample of the run handed out last (set by the caller).
+    pub pending: Option<Pending>,
+    /// Whether the walk has handed out its last run.
+    ended: bool,
+}
+
+/// What a lane does next: march a run, or stop.
+pub(in crate::render) enum Next {
+    /// March this run (it starts a new group of grouped reuse).
+    Run(Run),
+    /// The walk is over; the ray was not terminated.
+    Ended,
+    /// Early termination at a pending sample.
+    Terminated,
+}
+
+impl RunWalk {
+    /// The walk of segment `seg` over frame `f`'s blocks.
+    pub fn new<T>(f: &Frame<'_, T>, seg: Segment) -> RunWalk {
+        let walker = BlockWalker::new(
+            seg.o,
+            seg.d,
+            seg.walk.0,
+            seg.t_out,
+            f.block_size,
+            f.block_counts,
+        )
+        .staying();
+        RunWalk {
+            seg,
+            walker,
+            cur: None,
+            held: None,
+            pending: None,
+            ended: false,
+        }
+    }
+
+    /// The next run, after compositing the pending sample of the last one
+    /// into `c`; `per_block`: a run per block (grouped reuse). Inlined into
+    /// the packets' loop, so it is compiled with their instruction set
+    /// (`ceil` one instruction, not a library call).
+    #[inline(always)]
+    pub fn next<T: Voxel, L: Level, C: Composite>(
+        &mut self,
+        st: &Steps<'_, L>,
+        f: &Frame<'_, T>,
+        per_block: bool,
+        c: &mut C,
+        n: &mut Counters,
+    ) -> Next {
+        let seg = self.seg;
+        if let Some((b, skip)) = self.held.take() {
+            // The pending sample's stretch ends at this block's first
+            // sample, whether or not the block is skipped.
+            if let Some(p) = self.pending.take() {
+                if flush(f, p, seg.t0 + b.n0 as f32 * st.level_steps[b.li], c) {
+                    return Next::Terminated;
+                }
+            }
+            if !skip {
+                self.cur = Some(b);
+            }
+        }
+        if !self.ended {
+            let t_stop = seg.walk.1;
+            for (ta, tb, b) in self.walker.by_ref() {
+                if ta >= t_stop && self.cur.is_none() {
+                    break;
+                }
+                // A skipped block with no run before it changes nothing.
+                let skip = f.skip_empty && f.empty[b];
+                if skip && self.cur.is_none() {
+                    continue;
+                }
+                let (j, cap) = if !L::FIXED && f.empty[b] {
+                    (st.level_hi, u32::MAX)
+                } else {
+                    st.rule.level(st, f, &seg, (b, ta, tb), n)
+                };
+                let li = (j - st.level_lo) as usize;
+                let s = st.level_steps[li];
+                let n0 = ((ta - seg.t0) / s).ceil().max(0.0);
+                let n1 = ((tb - seg.t0) / s).ceil().max(0.0);
+                if n1 <= n0 {
+                    continue;
+                }
+                let blk = Run {
+                    n0: n0 as u32,
+                    n1: n1 as u32,
+                    li,
+                    cap,
+                };
+                if let Some(r) = &mut self.cur {
+                    if !per_block && !skip && r.li == li && r.n1 == blk.n0 {
+                        r.n1 = blk.n1;
+                        continue;
+                    }
+                }
+                if let Some(r) = self.cur.take() {
+                    self.held = Some((blk, skip));
+                    return Next::Run(r);
+                }
+                if !skip {
+                    self.cur = Some(blk);
+                }
+            }
+            self.ended = true;
+            if let Some(r) = self.cur.take() {
+                return Next::Run(r);
+            }
+        }
+        match self.pending.take() {
+            Some(p) if flush(f, p, seg.t_end().max(p.t), c) => Next::Terminated,
+            _ => Next::Ended,
+        }
     }
 }

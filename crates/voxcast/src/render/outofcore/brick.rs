@@ -384,7 +384,7 @@ fn march_rows<T: Stored>(
         occupied: None,
         seed: 0,
     };
-    let pk = packet::Packets {
+    let pk: packet::Packets<'_, _> = packet::Packets {
         f: &frame,
         q: a.q,
         st: a.st,
@@ -399,6 +399,7 @@ fn march_rows<T: Stored>(
         z_pairs: &z_pairs,
         level,
         imp: None,
+        runs: None,
     };
     rows.map(|row| {
         let mut n = RowCount::default();
@@ -410,7 +411,7 @@ fn march_rows<T: Stored>(
                 acc[i] = p.finish();
             }
             if lanes.iter().any(Option::is_some) {
-                let mut count = [[0u32; 2]; packet::LANES];
+                let mut count = [[0u32; 3]; packet::LANES];
                 let mut alive = [false; packet::LANES];
                 pk.march_lanes(&lanes, &mut acc, &mut count, &mut alive);
                 for (i, p) in group.iter_mut().enumerate() {

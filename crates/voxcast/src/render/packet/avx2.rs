@@ -2,7 +2,9 @@
 //! parent module): the trilinear gathers, the transfer-function rows, the
 //! block exits of empty-space skipping, shading and the marching loop.
 
-use super::{ImpLane, ImpState, Lane, Packets, LANES};
+use super::{ImpState, Lane, Packets, Runs, State, LANES};
+use crate::render::composite::Front;
+use crate::render::march::{Next, Pending};
 use crate::volume::{Voxel, VoxelKind};
 use glam::Vec4;
 use std::arch::x86_64::*;
@@ -275,25 +277,31 @@ unsafe fn dot(a: V3, b: V3) -> __m256 {
 }
 
 /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
-/// colour and opacity to `acc`, its samples and shaded samples to
-/// `count`, and leaves `alive` false for lanes that terminated early.
-/// `SKIP`: empty-space skipping (`pk.empty`); `SHADE`: Blinn–Phong
-/// (`pk.shading`).
+/// colour and opacity to `st.acc`, its samples, shaded samples and
+/// interpolations to `st.count`, and leaves `st.alive` false for lanes
+/// that terminated early. `SKIP`: empty-space skipping (`pk.empty`);
+/// `SHADE`: Blinn–Phong (`pk.shading`); `IMP`: `importance`'s walks
+/// (`st.imp`); `R::ON`: a step-per-block march's runs (`st.runs`), with
+/// S0's grouped reuse where `GROUPED`.
 ///
 /// # Safety
 /// The level's instructions present (AVX2 and FMA, and for
 /// `march_avx512` AVX-512 F and VL); the grid `fits`; the shading
 /// `shades`; for a u8 grid, `pk.z_pairs` is its z-paired copy.
 #[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn march_avx2<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
-    pk: &Packets<'_, T>,
+pub(super) unsafe fn march_avx2<
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
     lanes: &[Option<Lane>; LANES],
-    imp: &mut [Option<ImpLane>; LANES],
-    acc: &mut [Vec4; LANES],
-    count: &mut [[u32; 2]; LANES],
-    alive: &mut [bool; LANES],
+    st: &mut State<'_>,
 ) {
-    march::<T, SKIP, SHADE, IMP>(pk, lanes, imp, acc, count, alive)
+    march::<T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
 }
 
 /// [`march_avx2`], compiled with AVX-512 F and VL as well (same lanes,
@@ -304,18 +312,69 @@ pub(super) unsafe fn march_avx2<T: Voxel, const SKIP: bool, const SHADE: bool, c
 #[target_feature(enable = "avx2,fma,avx512f,avx512vl")]
 pub(super) unsafe fn march_avx512<
     T: Voxel,
+    R: Runs<T>,
     const SKIP: bool,
     const SHADE: bool,
     const IMP: bool,
+    const GROUPED: bool,
 >(
-    pk: &Packets<'_, T>,
+    pk: &Packets<'_, T, R>,
     lanes: &[Option<Lane>; LANES],
-    imp: &mut [Option<ImpLane>; LANES],
-    acc: &mut [Vec4; LANES],
-    count: &mut [[u32; 2]; LANES],
-    alive: &mut [bool; LANES],
+    st: &mut State<'_>,
 ) {
-    march::<T, SKIP, SHADE, IMP>(pk, lanes, imp, acc, count, alive)
+    march::<T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
+}
+
+/// A lane mask from the low `LANES` bits of `bits`.
+#[inline(always)]
+unsafe fn mask(bits: i32) -> __m256 {
+    let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32(bits), lane_bits),
+        lane_bits,
+    ))
+}
+
+#[inline(always)]
+unsafe fn store(v: __m256) -> [f32; LANES] {
+    let mut a = [0f32; LANES];
+    _mm256_storeu_ps(a.as_mut_ptr(), v);
+    a
+}
+
+#[inline(always)]
+unsafe fn store_i(v: __m256i) -> [i32; LANES] {
+    let mut a = [0i32; LANES];
+    _mm256_storeu_si256(a.as_mut_ptr() as *mut __m256i, v);
+    a
+}
+
+#[inline(always)]
+unsafe fn load_i(v: [i32; LANES]) -> __m256i {
+    _mm256_loadu_si256(v.as_ptr() as *const __m256i)
+}
+
+/// A step-per-block march's lane state in the vector loop: each lane's
+/// run (`k` up to `kend`, step, table offset, group cap), its grouped
+/// reuse (`fresh`: the next sample starts a group; the last evaluated
+/// sample), and the pending last sample of its run.
+struct RunRegs {
+    stv: __m256,
+    kend: __m256,
+    offv: __m256i,
+    capv: __m256,
+    fresh: __m256,
+    /// `group_size`'s thresholds: a third and two thirds of the exit.
+    th1: __m256,
+    th2: __m256,
+    /// The last evaluated sample: colour, opacity, entry, validity.
+    last: [__m256; 4],
+    last_idx: __m256i,
+    last_ok: __m256,
+    /// The run's last sample: colour, opacity, position, entry, validity.
+    pend: [__m256; 5],
+    pend_idx: __m256i,
+    pend_ok: __m256,
 }
 
 /// The loop of both levels, inlined into each.
@@ -323,13 +382,17 @@ pub(super) unsafe fn march_avx512<
 /// # Safety
 /// As [`march_avx2`].
 #[inline(always)]
-unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
-    pk: &Packets<'_, T>,
+unsafe fn march<
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
     lanes: &[Option<Lane>; LANES],
-    imp: &mut [Option<ImpLane>; LANES],
-    acc: &mut [Vec4; LANES],
-    count: &mut [[u32; 2]; LANES],
-    alive: &mut [bool; LANES],
+    st: &mut State<'_>,
 ) {
     let f = pk.f;
     let (data, step, last, max) = f.grid.layout();
@@ -356,13 +419,29 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
         scale: _mm256_set1_ps(scale),
         offset: _mm256_set1_ps(offset),
     };
-    let mut a = [[0f32; LANES]; 10];
+    let mut a = [[0f32; LANES]; 12];
     let (mut k, mut kend) = ([0f32; LANES], [0f32; LANES]);
     let mut live_bits = 0i32;
     for (i, l) in lanes.iter().enumerate() {
         if let Some(l) = l {
+            // `group_size`'s thresholds of the lane's exit.
+            let t_out = match &st.runs[i] {
+                Some(w) if R::ON => w.seg.t_out,
+                _ => 0.0,
+            };
             let v = [
-                l.o.x, l.o.y, l.o.z, l.d.x, l.d.y, l.d.z, l.t0, l.view.x, l.view.y, l.view.z,
+                l.o.x,
+                l.o.y,
+                l.o.z,
+                l.d.x,
+                l.d.y,
+                l.d.z,
+                l.t0,
+                l.view.x,
+                l.view.y,
+                l.view.z,
+                t_out / 3.0,
+                t_out * (2.0 / 3.0),
             ];
             for (c, x) in v.into_iter().enumerate() {
                 a[c][i] = x;
@@ -378,13 +457,29 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
     let view: V3 = [load(a[7]), load(a[8]), load(a[9])];
     let mut kv = load(k);
     let kend = load(kend);
-    let st = _mm256_set1_ps(pk.st);
     let zero = _mm256_setzero_ps();
     let one = _mm256_set1_ps(1.0);
+    let mut rr = RunRegs {
+        stv: one,
+        kend,
+        offv: _mm256_setzero_si256(),
+        capv: _mm256_set1_ps(3.0),
+        fresh: zero,
+        th1: load(a[10]),
+        th2: load(a[11]),
+        last: [zero; 4],
+        last_idx: _mm256_setzero_si256(),
+        last_ok: zero,
+        pend: [zero; 5],
+        pend_idx: _mm256_setzero_si256(),
+        pend_ok: zero,
+    };
+    let stv = _mm256_set1_ps(pk.st);
     let top = _mm256_set1_ps((crate::transfer::LUT_SIZE - 1) as f32);
     let half = _mm256_set1_ps(0.5);
-    let q = match (IMP, &pk.imp) {
-        (true, Some(ip)) => ip.tables.as_ptr() as *const f32,
+    let q = match (IMP, &pk.imp, pk.runs) {
+        (true, Some(ip), _) => ip.tables.as_ptr() as *const f32,
+        (false, _, Some(r)) if R::ON => r.tables().as_ptr() as *const f32,
         _ => pk.q.as_ptr() as *const f32,
     };
     let rgb = f.lut.entries().as_ptr() as *const f32;
@@ -420,16 +515,12 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
     let (ncx, ncy) = (_mm256_set1_epi32(cx), _mm256_set1_epi32(cy));
     let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
     // Lane state.
-    let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-    let mut live = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-        _mm256_and_si256(_mm256_set1_epi32(live_bits), lane_bits),
-        lane_bits,
-    ));
+    let mut live = mask(live_bits);
     let mut walked = zero;
     // Each lane goes on from the colour and opacity it holds (zero for a
     // new ray; a brick's predecessors' for the out-of-core renderer).
     let mut start = [[0f32; LANES]; 4];
-    for (i, c) in acc.iter().enumerate() {
+    for (i, c) in st.acc.iter().enumerate() {
         start[0][i] = c.x;
         start[1][i] = c.y;
         start[2][i] = c.z;
@@ -443,6 +534,7 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
     );
     let mut cnt = _mm256_setzero_si256();
     let mut cnt_shaded = _mm256_setzero_si256();
+    let mut cnt_interp = _mm256_setzero_si256();
     // `importance`: each lane's position, spacing, stretch end and
     // table offset; every lane starts by fetching its first stretch.
     let mut is = ImpState::default();
@@ -463,7 +555,7 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
                 _mm256_storeu_ps(is.tb.as_mut_ptr(), tbv);
                 _mm256_storeu_si256(is.off.as_mut_ptr() as *mut __m256i, offv);
                 let mut dead = 0i32;
-                for (i, l) in imp.iter_mut().enumerate() {
+                for (i, l) in st.imp.iter_mut().enumerate() {
                     if (bits >> i) & 1 == 0 {
                         continue;
                     }
@@ -483,18 +575,36 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
                 tbv = load(is.tb);
                 offv = _mm256_loadu_si256(is.off.as_ptr() as *const __m256i);
                 // A lane whose walk ended is done, and not terminated.
-                let ended = _mm256_castsi256_ps(_mm256_cmpeq_epi32(
-                    _mm256_and_si256(_mm256_set1_epi32(dead), lane_bits),
-                    lane_bits,
-                ));
+                let ended = mask(dead);
                 live = _mm256_andnot_ps(ended, live);
+                walked = _mm256_or_ps(walked, ended);
+            }
+        }
+        if R::ON {
+            // Lanes past their run composite its last sample and walk on
+            // to the next run (scalar).
+            let need = _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_GE_OQ>(kv, rr.kend));
+            let bits = _mm256_movemask_ps(need);
+            if bits != 0 {
+                let (ended, dead) = walk_runs::<T, R>(
+                    pk,
+                    st,
+                    bits,
+                    &mut rr,
+                    &mut kv,
+                    [&mut cr, &mut cg, &mut cb, &mut ca],
+                );
+                live = _mm256_andnot_ps(_mm256_or_ps(ended, dead), live);
                 walked = _mm256_or_ps(walked, ended);
             }
         }
         let act = if IMP {
             live
         } else {
-            _mm256_and_ps(live, _mm256_cmp_ps::<_CMP_LT_OQ>(kv, kend))
+            _mm256_and_ps(
+                live,
+                _mm256_cmp_ps::<_CMP_LT_OQ>(kv, if R::ON { rr.kend } else { kend }),
+            )
         };
         if _mm256_movemask_ps(act) == 0 {
             break;
@@ -503,8 +613,10 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
             let t = tv;
             tv = _mm256_blendv_ps(tv, _mm256_add_ps(tv, sv), act);
             t
+        } else if R::ON {
+            _mm256_add_ps(t0, _mm256_mul_ps(kv, rr.stv))
         } else {
-            _mm256_add_ps(t0, _mm256_mul_ps(kv, st))
+            _mm256_add_ps(t0, _mm256_mul_ps(kv, stv))
         };
         let p: V3 = [
             _mm256_add_ps(o[0], _mm256_mul_ps(d[0], t)),
@@ -537,93 +649,245 @@ unsafe fn march<T: Voxel, const SKIP: bool, const SHADE: bool, const IMP: bool>(
                 // First sample past the exit (a hair early: a sample
                 // still inside is tested again, never one skipped).
                 let kn = _mm256_ceil_ps(_mm256_sub_ps(
-                    _mm256_div_ps(_mm256_sub_ps(te, t0), st),
+                    _mm256_div_ps(_mm256_sub_ps(te, t0), stv),
                     _mm256_set1_ps(1e-3),
                 ));
                 next = _mm256_blendv_ps(next, _mm256_max_ps(next, kn), skip);
                 samp = _mm256_andnot_ps(skip, act);
             }
         }
+        // A step-per-block march: the run's last sample waits for its
+        // stretch; grouped reuse evaluates only where a group starts.
+        let (is_last, eval) = if R::ON {
+            let is_last = _mm256_and_ps(
+                act,
+                _mm256_cmp_ps::<_CMP_EQ_OQ>(kv, _mm256_sub_ps(rr.kend, one)),
+            );
+            let eval = if GROUPED {
+                // `group_size(t, t_out).min(cap)` divides k.
+                let g = _mm256_add_ps(
+                    _mm256_add_ps(
+                        one,
+                        _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t, rr.th1), one),
+                    ),
+                    _mm256_and_ps(_mm256_cmp_ps::<_CMP_GT_OQ>(t, rr.th2), one),
+                );
+                let g = _mm256_min_ps(g, rr.capv);
+                let div = _mm256_cmp_ps::<_CMP_EQ_OQ>(
+                    _mm256_mul_ps(_mm256_floor_ps(_mm256_div_ps(kv, g)), g),
+                    kv,
+                );
+                let eval = _mm256_and_ps(act, _mm256_or_ps(rr.fresh, div));
+                rr.fresh = _mm256_andnot_ps(act, rr.fresh);
+                eval
+            } else {
+                act
+            };
+            (is_last, eval)
+        } else {
+            (zero, samp)
+        };
         if !IMP {
             kv = _mm256_blendv_ps(kv, next, act);
         }
-        if _mm256_movemask_ps(samp) == 0 {
+        if !R::ON && _mm256_movemask_ps(samp) == 0 {
             continue;
         }
-        let v = vol.sample::<T>(p);
-        // `Lut::index`: below 0 (or NaN) nothing; the lane's entry 0
-        // is read and masked out.
-        let mut valid = _mm256_and_ps(samp, _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero));
-        let x = _mm256_add_ps(_mm256_mul_ps(_mm256_min_ps(v, one), top), half);
-        let idx = _mm256_and_si256(_mm256_cvttps_epi32(x), _mm256_castps_si256(valid));
-        let i4 = _mm256_slli_epi32::<2>(idx);
-        // The eight table rows: loaded whole and transposed (cheaper
-        // than four gathers); `importance` reads its lane's level.
-        let [qr, qg, qb, al] = if IMP {
-            rows(q, _mm256_add_epi32(i4, offv))
-        } else {
-            rows(q, i4)
-        };
-        let (er, eg, eb);
-        if SHADE {
-            // Transparent samples are culled before shading.
-            valid = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_GT_OQ>(al, zero));
-            if _mm256_movemask_ps(valid) == 0 {
-                cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(samp));
-                continue;
+        cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(samp));
+        let (mut er, mut eg, mut eb, mut al, mut valid, mut idx) =
+            (zero, zero, zero, zero, zero, _mm256_setzero_si256());
+        if !GROUPED || _mm256_movemask_ps(eval) != 0 {
+            cnt_interp = _mm256_sub_epi32(cnt_interp, _mm256_castps_si256(eval));
+            let v = vol.sample::<T>(p);
+            // `Lut::index`: below 0 (or NaN) nothing; the lane's entry 0
+            // is read and masked out.
+            valid = _mm256_and_ps(eval, _mm256_cmp_ps::<_CMP_GE_OQ>(v, zero));
+            let x = _mm256_add_ps(_mm256_mul_ps(_mm256_min_ps(v, one), top), half);
+            idx = _mm256_and_si256(_mm256_cvttps_epi32(x), _mm256_castps_si256(valid));
+            let i4 = _mm256_slli_epi32::<2>(idx);
+            // The eight table rows: loaded whole and transposed (cheaper
+            // than four gathers); `importance` and the step-per-block
+            // marches read their lane's level.
+            let [qr, qg, qb, qa] = if IMP {
+                rows(q, _mm256_add_epi32(i4, offv))
+            } else if R::ON {
+                rows(q, _mm256_add_epi32(i4, rr.offv))
+            } else {
+                rows(q, i4)
+            };
+            al = qa;
+            if SHADE {
+                // Transparent samples are culled before shading.
+                valid = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_GT_OQ>(al, zero));
+                if _mm256_movemask_ps(valid) == 0 {
+                    if !R::ON {
+                        continue;
+                    }
+                } else {
+                    let [r, g, b, _] = rows(rgb, i4);
+                    let c = [r, g, b];
+                    let g = vol.gradient::<T>(p);
+                    let flat = _mm256_cmp_ps::<_CMP_LT_OQ>(dot(g, g), min_g2);
+                    let gw: V3 = [
+                        _mm256_mul_ps(g[0], inv_sp[0]),
+                        _mm256_mul_ps(g[1], inv_sp[1]),
+                        _mm256_mul_ps(g[2], inv_sp[2]),
+                    ];
+                    let inv_len = _mm256_div_ps(one, _mm256_sqrt_ps(dot(gw, gw)));
+                    let n: V3 = [
+                        _mm256_mul_ps(gw[0], inv_len),
+                        _mm256_mul_ps(gw[1], inv_len),
+                        _mm256_mul_ps(gw[2], inv_len),
+                    ];
+                    let ndl = _mm256_and_ps(dot(n, view), abs_mask);
+                    let spec = _mm256_mul_ps(spe, powi(ndl, shin));
+                    let k = _mm256_add_ps(amb, _mm256_mul_ps(dif, ndl));
+                    er = _mm256_and_ps(phong(c[0], k, spec, flat, al), valid);
+                    eg = _mm256_and_ps(phong(c[1], k, spec, flat, al), valid);
+                    eb = _mm256_and_ps(phong(c[2], k, spec, flat, al), valid);
+                    cnt_shaded = _mm256_sub_epi32(cnt_shaded, _mm256_castps_si256(valid));
+                }
+            } else {
+                er = _mm256_and_ps(qr, valid);
+                eg = _mm256_and_ps(qg, valid);
+                eb = _mm256_and_ps(qb, valid);
             }
-            let [r, g, b, _] = rows(rgb, i4);
-            let c = [r, g, b];
-            let g = vol.gradient::<T>(p);
-            let flat = _mm256_cmp_ps::<_CMP_LT_OQ>(dot(g, g), min_g2);
-            let gw: V3 = [
-                _mm256_mul_ps(g[0], inv_sp[0]),
-                _mm256_mul_ps(g[1], inv_sp[1]),
-                _mm256_mul_ps(g[2], inv_sp[2]),
-            ];
-            let inv_len = _mm256_div_ps(one, _mm256_sqrt_ps(dot(gw, gw)));
-            let n: V3 = [
-                _mm256_mul_ps(gw[0], inv_len),
-                _mm256_mul_ps(gw[1], inv_len),
-                _mm256_mul_ps(gw[2], inv_len),
-            ];
-            let ndl = _mm256_and_ps(dot(n, view), abs_mask);
-            let spec = _mm256_mul_ps(spe, powi(ndl, shin));
-            let k = _mm256_add_ps(amb, _mm256_mul_ps(dif, ndl));
-            er = _mm256_and_ps(phong(c[0], k, spec, flat, al), valid);
-            eg = _mm256_and_ps(phong(c[1], k, spec, flat, al), valid);
-            eb = _mm256_and_ps(phong(c[2], k, spec, flat, al), valid);
-            cnt_shaded = _mm256_sub_epi32(cnt_shaded, _mm256_castps_si256(valid));
-        } else {
-            er = _mm256_and_ps(qr, valid);
-            eg = _mm256_and_ps(qg, valid);
-            eb = _mm256_and_ps(qb, valid);
+            al = _mm256_and_ps(al, valid);
+            if GROUPED {
+                // The lanes that evaluated keep their sample for reuse.
+                for (l, e) in rr.last.iter_mut().zip([er, eg, eb, al]) {
+                    *l = _mm256_blendv_ps(*l, e, eval);
+                }
+                rr.last_idx = _mm256_castps_si256(_mm256_blendv_ps(
+                    _mm256_castsi256_ps(rr.last_idx),
+                    _mm256_castsi256_ps(idx),
+                    eval,
+                ));
+                rr.last_ok = _mm256_blendv_ps(rr.last_ok, valid, eval);
+            }
         }
-        let al = _mm256_and_ps(al, valid);
+        if GROUPED {
+            // Every sampling lane composites its group's value (lanes
+            // that ended or terminated keep theirs, unused).
+            [er, eg, eb, al] = rr.last.map(|v| _mm256_and_ps(v, act));
+            idx = rr.last_idx;
+            valid = _mm256_and_ps(rr.last_ok, act);
+        }
+        if R::ON {
+            // The run's last sample waits for its stretch (the walk
+            // composites it); the others composite with the run's step.
+            let e = [er, eg, eb, al, t];
+            for (pnd, e) in rr.pend.iter_mut().zip(e) {
+                *pnd = _mm256_blendv_ps(*pnd, e, is_last);
+            }
+            rr.pend_idx = _mm256_castps_si256(_mm256_blendv_ps(
+                _mm256_castsi256_ps(rr.pend_idx),
+                _mm256_castsi256_ps(idx),
+                is_last,
+            ));
+            rr.pend_ok = _mm256_blendv_ps(rr.pend_ok, valid, is_last);
+            valid = _mm256_andnot_ps(is_last, valid);
+            er = _mm256_andnot_ps(is_last, er);
+            eg = _mm256_andnot_ps(is_last, eg);
+            eb = _mm256_andnot_ps(is_last, eb);
+            al = _mm256_andnot_ps(is_last, al);
+        }
         // Front to back (`over_front` with the optical model's weights).
         let tr = _mm256_sub_ps(one, ca);
         cr = _mm256_add_ps(cr, _mm256_mul_ps(_mm256_mul_ps(er, we), tr));
         cg = _mm256_add_ps(cg, _mm256_mul_ps(_mm256_mul_ps(eg, we), tr));
         cb = _mm256_add_ps(cb, _mm256_mul_ps(_mm256_mul_ps(eb, we), tr));
         ca = _mm256_add_ps(ca, _mm256_mul_ps(_mm256_mul_ps(al, wa), tr));
-        cnt = _mm256_sub_epi32(cnt, _mm256_castps_si256(samp));
         let done = _mm256_and_ps(valid, _mm256_cmp_ps::<_CMP_GE_OQ>(ca, stop));
         live = _mm256_andnot_ps(done, live);
     }
-    let mut out = [[0f32; LANES]; 4];
-    _mm256_storeu_ps(out[0].as_mut_ptr(), cr);
-    _mm256_storeu_ps(out[1].as_mut_ptr(), cg);
-    _mm256_storeu_ps(out[2].as_mut_ptr(), cb);
-    _mm256_storeu_ps(out[3].as_mut_ptr(), ca);
-    let mut c = [[0i32; LANES]; 2];
-    _mm256_storeu_si256(c[0].as_mut_ptr() as *mut __m256i, cnt);
-    _mm256_storeu_si256(c[1].as_mut_ptr() as *mut __m256i, cnt_shaded);
-    // Lanes whose `importance` walk ended count as alive (not
-    // terminated early).
+    if !R::ON {
+        cnt_interp = cnt;
+    }
+    let [cr, cg, cb, ca] = [store(cr), store(cg), store(cb), store(ca)];
+    let (c, cs, ci) = (store_i(cnt), store_i(cnt_shaded), store_i(cnt_interp));
+    // Lanes whose walk ended count as alive (not terminated early).
     let l = _mm256_movemask_ps(_mm256_or_ps(live, walked));
     for i in 0..LANES {
-        acc[i] = Vec4::new(out[0][i], out[1][i], out[2][i], out[3][i]);
-        count[i] = [c[0][i] as u32, c[1][i] as u32];
-        alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
+        st.acc[i] = Vec4::new(cr[i], cg[i], cb[i], ca[i]);
+        st.count[i] = [c[i] as u32, cs[i] as u32, ci[i] as u32];
+        st.alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
     }
+}
+
+/// The step-per-block lanes of `bits`, past their run: each hands its
+/// run's last sample to its walk, which composites it and finds the next
+/// run (scalar). Returns the masks of the lanes whose walk ended and of
+/// those that terminated.
+///
+/// # Safety
+/// As [`march_avx2`]; `st.runs` holds a walk for every lane of `bits`.
+#[inline(always)]
+unsafe fn walk_runs<T: Voxel, R: Runs<T>>(
+    pk: &Packets<'_, T, R>,
+    st: &mut State<'_>,
+    bits: i32,
+    rr: &mut RunRegs,
+    kv: &mut __m256,
+    c: [&mut __m256; 4],
+) -> (__m256, __m256) {
+    let runs = pk.runs.unwrap_unchecked();
+    let mut col = [store(*c[0]), store(*c[1]), store(*c[2]), store(*c[3])];
+    let pend = rr.pend.map(|p| store(p));
+    let pend_idx = store_i(rr.pend_idx);
+    let pend_ok = store_i(_mm256_castps_si256(rr.pend_ok));
+    let (mut k, mut kend, mut s, mut cap, mut fresh) = (
+        store(*kv),
+        store(rr.kend),
+        store(rr.stv),
+        store(rr.capv),
+        store_i(_mm256_castps_si256(rr.fresh)),
+    );
+    let mut off = store_i(rr.offv);
+    let (mut ended, mut dead) = (0i32, 0i32);
+    for (i, w) in st.runs.iter_mut().enumerate() {
+        if (bits >> i) & 1 == 0 {
+            continue;
+        }
+        let w = w.as_mut().unwrap_unchecked();
+        // The run's last sample (none before the first run).
+        if pend_ok[i] != 0 {
+            w.pending = Some(Pending {
+                t: pend[4][i],
+                entry: pend_idx[i] as usize,
+                e: glam::Vec3::new(pend[0][i], pend[1][i], pend[2][i]),
+                a: pend[3][i],
+            });
+        }
+        let acc = Vec4::new(col[0][i], col[1][i], col[2][i], col[3][i]);
+        let mut c = Front::resume(acc, pk.weights, pk.stop);
+        match runs.next(pk.f, w, &mut c, st.walk) {
+            Next::Run(r) => {
+                k[i] = r.n0 as f32;
+                kend[i] = r.n1 as f32;
+                s[i] = runs.step(r.li);
+                off[i] = (r.li * crate::transfer::LUT_SIZE * 4) as i32;
+                cap[i] = r.cap.min(3) as f32;
+                fresh[i] = -1;
+            }
+            Next::Ended => ended |= 1 << i,
+            Next::Terminated => dead |= 1 << i,
+        }
+        let acc = c.acc();
+        for (ch, v) in col.iter_mut().zip(acc.to_array()) {
+            ch[i] = v;
+        }
+    }
+    *kv = load(k);
+    rr.kend = load(kend);
+    rr.stv = load(s);
+    rr.capv = load(cap);
+    rr.fresh = _mm256_castsi256_ps(load_i(fresh));
+    rr.offv = load_i(off);
+    // Each pending sample is now with its walk.
+    rr.pend_ok = _mm256_andnot_ps(mask(bits), rr.pend_ok);
+    for (r, v) in c.into_iter().zip(col) {
+        *r = load(v);
+    }
+    (mask(ended), mask(dead))
 }

@@ -79,7 +79,7 @@ impl Imp<'_> {
     }
 }
 
-impl<T: Voxel> Packets<'_, T> {
+impl<T: Voxel, R: super::Runs<T>> Packets<'_, T, R> {
     /// Sets up an `importance` ray as [`super::trace::trace`] and
     /// `Importance::march` do: the lane (no fixed-step samples) and its
     /// block walk.

@@ -39,12 +39,15 @@ use super::sample::{evaluate_premul, Flat, Phong};
 use super::shading::BlinnPhong;
 use super::stats::RenderStats;
 mod importance;
+mod runs;
 
+use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::{ImpLane, ImpState};
+pub(in crate::render) use runs::{Adapt, Runs};
 
 /// Lanes of a packet.
 pub(super) const LANES: usize = 8;
@@ -140,8 +143,9 @@ fn huge_pages<T>(v: &mut Vec<T>) {
     let _ = v;
 }
 
-/// What every packet of a render shares.
-pub(super) struct Packets<'a, T> {
+/// What every packet of a render shares; `R`: where the lanes' runs come
+/// from, for a step-per-block march ([`Runs`]).
+pub(super) struct Packets<'a, T, R = ()> {
     pub f: &'a Frame<'a, T>,
     /// The premultiplied table of the step ([`crate::transfer::Lut::premultiplied`]).
     pub q: &'a [[f32; 4]; LUT_SIZE],
@@ -163,12 +167,28 @@ pub(super) struct Packets<'a, T> {
     pub level: Level,
     /// `importance`'s pdf and levels, when the packets march it.
     pub imp: Option<Imp<'a>>,
+    /// A step-per-block march, when the packets march one.
+    pub runs: Option<&'a R>,
 }
 
 /// Whether the packets can shade with `bp`: the specular power is taken by
 /// repeated squaring, so the exponent must be a whole number (≤ 64).
 pub(super) fn shades(bp: &BlinnPhong) -> bool {
     bp.shininess.fract() == 0.0 && (0.0..=64.0).contains(&bp.shininess)
+}
+
+/// The lanes' state the vector loop reads and writes besides their rays:
+/// the walks (`importance`'s or a step-per-block march's), each lane's
+/// colour and opacity, its counts (samples, shaded samples,
+/// interpolations) and whether it is still going; `walk` gets what the
+/// walks count (`adaptive-s0`'s gradients).
+struct State<'s> {
+    imp: &'s mut [Option<ImpLane>; LANES],
+    runs: &'s mut [Option<RunWalk>; LANES],
+    acc: &'s mut [Vec4; LANES],
+    count: &'s mut [[u32; 3]; LANES],
+    alive: &'s mut [bool; LANES],
+    walk: &'s mut Counters,
 }
 
 /// One lane's ray, set up by the scalar code as [`super::trace::trace`]
@@ -201,7 +221,7 @@ struct Setup {
     walk: (f32, f32),
 }
 
-impl<T: Voxel> Packets<'_, T> {
+impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     /// Sets up the ray `(origin, unit direction)` in world units, counting
     /// it; `None` when it misses the volume or meets only empty blocks.
     fn setup(&self, (origin, dir): (Vec3, Vec3), stats: &mut RenderStats) -> Option<Setup> {
@@ -286,64 +306,90 @@ impl<T: Voxel> Packets<'_, T> {
         debug_assert!(rays.len() <= LANES && out.len() == rays.len());
         let mut lanes = [None; LANES];
         let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
+        let mut runs: [Option<RunWalk>; LANES] = std::array::from_fn(|_| None);
         for (i, &r) in rays.iter().enumerate() {
             let pixel = (x0 + i as u32, y);
-            lanes[i] = match self.imp {
-                Some(_) => self.imp_lane(r, pixel, pass, stats).map(|(l, w)| {
+            lanes[i] = if R::ON {
+                self.run_lane(r, pixel, pass, stats).map(|(l, w)| {
+                    runs[i] = Some(w);
+                    l
+                })
+            } else if self.imp.is_some() {
+                self.imp_lane(r, pixel, pass, stats).map(|(l, w)| {
                     imp[i] = Some(w);
                     l
-                }),
-                None => self.lane(r, pixel, pass, stats),
+                })
+            } else {
+                self.lane(r, pixel, pass, stats)
             };
         }
         if lanes.iter().all(Option::is_none) {
             return;
         }
         let mut acc = [Vec4::ZERO; LANES];
-        let mut count = [[0u32; 2]; LANES];
+        let mut count = [[0u32; 3]; LANES];
         let mut alive = [false; LANES];
+        let mut walk = Counters::default();
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
         // grid and `shades` for the shading.
         #[cfg(target_arch = "x86_64")]
         unsafe {
+            let mut st = State {
+                imp: &mut imp,
+                runs: &mut runs,
+                acc: &mut acc,
+                count: &mut count,
+                alive: &mut alive,
+                walk: &mut walk,
+            };
+            let shade = self.shading.is_some();
             // `importance`: no skipping (its pdf has no mass in empty
-            // blocks), the lanes' walks in `imp`.
-            macro_rules! imp {
-                ($f:ident) => {
-                    match self.shading.is_some() {
-                        false => avx2::$f::<T, false, false, true>(
-                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
-                        ),
-                        true => avx2::$f::<T, false, true, true>(
-                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
-                        ),
-                    }
-                };
-            }
+            // blocks), the lanes' walks in `imp`; a step-per-block march:
+            // skipping in the walk, grouped reuse or not.
             macro_rules! go {
                 ($f:ident) => {
-                    match (self.empty.is_some(), self.shading.is_some()) {
-                        (false, false) => avx2::$f::<T, false, false, false>(
-                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
-                        ),
-                        (true, false) => avx2::$f::<T, true, false, false>(
-                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
-                        ),
-                        (false, true) => avx2::$f::<T, false, true, false>(
-                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
-                        ),
-                        (true, true) => avx2::$f::<T, true, true, false>(
-                            self, &lanes, &mut imp, &mut acc, &mut count, &mut alive,
-                        ),
+                    match (R::ON, self.imp.is_some(), self.empty.is_some(), shade) {
+                        (true, _, _, false) => match self.runs.is_some_and(|r| r.grouped()) {
+                            false => {
+                                avx2::$f::<T, R, false, false, false, false>(self, &lanes, &mut st)
+                            }
+                            true => {
+                                avx2::$f::<T, R, false, false, false, true>(self, &lanes, &mut st)
+                            }
+                        },
+                        (true, _, _, true) => match self.runs.is_some_and(|r| r.grouped()) {
+                            false => {
+                                avx2::$f::<T, R, false, true, false, false>(self, &lanes, &mut st)
+                            }
+                            true => {
+                                avx2::$f::<T, R, false, true, false, true>(self, &lanes, &mut st)
+                            }
+                        },
+                        (false, true, _, false) => {
+                            avx2::$f::<T, R, false, false, true, false>(self, &lanes, &mut st)
+                        }
+                        (false, true, _, true) => {
+                            avx2::$f::<T, R, false, true, true, false>(self, &lanes, &mut st)
+                        }
+                        (false, false, false, false) => {
+                            avx2::$f::<T, R, false, false, false, false>(self, &lanes, &mut st)
+                        }
+                        (false, false, true, false) => {
+                            avx2::$f::<T, R, true, false, false, false>(self, &lanes, &mut st)
+                        }
+                        (false, false, false, true) => {
+                            avx2::$f::<T, R, false, true, false, false>(self, &lanes, &mut st)
+                        }
+                        (false, false, true, true) => {
+                            avx2::$f::<T, R, true, true, false, false>(self, &lanes, &mut st)
+                        }
                     }
                 };
             }
-            match (self.level, self.imp.is_some()) {
-                (Level::Avx2, false) => go!(march_avx2),
-                (Level::Avx512, false) => go!(march_avx512),
-                (Level::Avx2, true) => imp!(march_avx2),
-                (Level::Avx512, true) => imp!(march_avx512),
+            match self.level {
+                Level::Avx2 => go!(march_avx2),
+                Level::Avx512 => go!(march_avx512),
             }
         };
         let mut n = Counters::default();
@@ -355,34 +401,45 @@ impl<T: Voxel> Packets<'_, T> {
                 terminated = self.last(&l, k, &mut c, &mut a, &mut n);
             }
             n.samples += count[i][0] as u64;
-            n.interpolations += count[i][0] as u64;
+            n.interpolations += count[i][2] as u64;
             n.shaded += count[i][1] as u64;
             stats.early_terminated += terminated as u64;
             out[i] += c.extend(a);
         }
-        stats.samples += n.samples;
-        stats.interpolations += n.interpolations;
-        stats.gradient_interpolations += 6 * n.shaded;
+        stats.samples += n.samples + walk.samples;
+        stats.interpolations += n.interpolations + walk.interpolations;
+        stats.gradient_interpolations += 6 * (n.shaded + walk.shaded);
     }
 
     /// Marches samples `k0..k_end` of each lane through the vector loop,
     /// from the colour and opacity `acc` holds (premultiplied), skipping
-    /// the empty blocks of `empty` when given; `count` gets each lane's samples and shaded samples,
-    /// `alive` whether it is still going (not terminated early). The
-    /// caller composites a ray's last sample. For the out-of-core renderer,
-    /// whose rays cross brick after brick.
+    /// the empty blocks of `empty` when given; `count` gets each lane's
+    /// samples, shaded samples and interpolations, `alive` whether it is
+    /// still going (not terminated early). The caller composites a ray's
+    /// last sample. For the out-of-core renderer, whose rays cross brick
+    /// after brick.
     pub fn march_lanes(
         &self,
         lanes: &[Option<Lane>; LANES],
         acc: &mut [Vec4; LANES],
-        count: &mut [[u32; 2]; LANES],
+        count: &mut [[u32; 3]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        debug_assert!(self.imp.is_none());
+        debug_assert!(self.imp.is_none() && !R::ON);
         debug_assert!(self
             .empty
             .is_none_or(|e| { e.len() == self.f.block_counts.iter().product::<usize>() }));
         let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
+        let mut runs: [Option<RunWalk>; LANES] = std::array::from_fn(|_| None);
+        let mut walk = Counters::default();
+        let mut st = State {
+            imp: &mut imp,
+            runs: &mut runs,
+            acc,
+            count,
+            alive,
+            walk: &mut walk,
+        };
         // SAFETY: as in `row`: the caller took `level` from [`level`],
         // checked [`fits`] for the grid and [`shades`] for the shading;
         // `empty`, when given, holds a flag per block of the frame's
@@ -392,18 +449,18 @@ impl<T: Voxel> Packets<'_, T> {
             macro_rules! go {
                 ($f:ident) => {
                     match (self.empty.is_some(), self.shading.is_some()) {
-                        (false, false) => avx2::$f::<T, false, false, false>(
-                            self, lanes, &mut imp, acc, count, alive,
-                        ),
-                        (true, false) => avx2::$f::<T, true, false, false>(
-                            self, lanes, &mut imp, acc, count, alive,
-                        ),
-                        (false, true) => avx2::$f::<T, false, true, false>(
-                            self, lanes, &mut imp, acc, count, alive,
-                        ),
-                        (true, true) => avx2::$f::<T, true, true, false>(
-                            self, lanes, &mut imp, acc, count, alive,
-                        ),
+                        (false, false) => {
+                            avx2::$f::<T, R, false, false, false, false>(self, lanes, &mut st)
+                        }
+                        (true, false) => {
+                            avx2::$f::<T, R, true, false, false, false>(self, lanes, &mut st)
+                        }
+                        (false, true) => {
+                            avx2::$f::<T, R, false, true, false, false>(self, lanes, &mut st)
+                        }
+                        (true, true) => {
+                            avx2::$f::<T, R, true, true, false, false>(self, lanes, &mut st)
+                        }
                     }
                 };
             }
@@ -413,7 +470,7 @@ impl<T: Voxel> Packets<'_, T> {
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = (lanes, acc, count, alive, &mut imp);
+        let _ = (lanes, &mut st);
     }
 
     /// The last sample of lane `l` (index `k`), composited over its

@@ -1,0 +1,123 @@
+//! The step-per-block marchers in the packets — `adaptive`, `adaptive-s0`,
+//! `adaptive-max`, and any of them or `uniform` with S0's grouped reuse:
+//! each lane walks its blocks in scalar code with a [`RunWalk`] (once per
+//! run of blocks sharing a step, not per sample), and the vector loop
+//! marches the run's samples with the lane's step and its level's table.
+//! The last sample of a run waits, as in [`Steps::march`], until the walk
+//! knows where its stretch ends; the walk composites it.
+
+use super::{Lane, Packets, Setup};
+use crate::render::composite::Front;
+use crate::render::march::{Level, Next, RunWalk, Steps};
+use crate::render::ray::{Counters, Frame, Segment};
+use crate::render::stats::RenderStats;
+use crate::volume::Voxel;
+use glam::Vec3;
+
+/// Where the packets' lanes get their runs from: a step-per-block march
+/// ([`Adapt`]), or none (`()`: a fixed step, or `importance`).
+pub(in crate::render) trait Runs<T: Voxel>: Sync {
+    /// Whether the lanes march runs.
+    const ON: bool;
+    /// The levels' premultiplied tables, one after the other (`LUT_SIZE`
+    /// rows each).
+    fn tables(&self) -> &[[f32; 4]];
+    /// The step of level index `li` (world units).
+    fn step(&self, li: usize) -> f32;
+    /// Grouped reuse (a run per block, groups restart with each run).
+    fn grouped(&self) -> bool;
+    /// The lane's next run (see [`RunWalk::next`]), compositing its
+    /// pending sample into `c`.
+    fn next(&self, f: &Frame<'_, T>, w: &mut RunWalk, c: &mut Front, n: &mut Counters) -> Next;
+}
+
+impl<T: Voxel> Runs<T> for () {
+    const ON: bool = false;
+    fn tables(&self) -> &[[f32; 4]] {
+        &[]
+    }
+    fn step(&self, _: usize) -> f32 {
+        0.0
+    }
+    fn grouped(&self) -> bool {
+        false
+    }
+    fn next(&self, _: &Frame<'_, T>, _: &mut RunWalk, _: &mut Front, _: &mut Counters) -> Next {
+        Next::Ended
+    }
+}
+
+/// A step-per-block march for the packets: the marcher, its levels'
+/// tables end to end, and whether samples are grouped.
+pub(in crate::render) struct Adapt<'a, L> {
+    pub steps: &'a Steps<'a, L>,
+    pub tables: &'a [[f32; 4]],
+    pub grouped: bool,
+}
+
+impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
+    const ON: bool = true;
+    fn tables(&self) -> &[[f32; 4]] {
+        self.tables
+    }
+    fn step(&self, li: usize) -> f32 {
+        self.steps.level_steps[li]
+    }
+    fn grouped(&self) -> bool {
+        self.grouped
+    }
+    #[inline(always)]
+    fn next(&self, f: &Frame<'_, T>, w: &mut RunWalk, c: &mut Front, n: &mut Counters) -> Next {
+        w.next(self.steps, f, self.grouped, c, n)
+    }
+}
+
+impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
+    /// Sets up a ray of a step-per-block march as [`super::trace::trace`]
+    /// does: the lane (its sample grid's start; no fixed-step samples)
+    /// and its walk.
+    pub(super) fn run_lane(
+        &self,
+        ray: (Vec3, Vec3),
+        pixel: (u32, u32),
+        pass: u32,
+        stats: &mut RenderStats,
+    ) -> Option<(Lane, RunWalk)> {
+        let f = self.f;
+        let Setup {
+            o,
+            d,
+            t_in,
+            t_out,
+            walk,
+        } = self.setup(ray, stats)?;
+        let t0 = match self.jitter {
+            Some(seed) => {
+                t_in + crate::render::rng::pixel_sequence(seed, pixel.0, pixel.1, pass) * f.step
+            }
+            None => t_in,
+        };
+        let seg = Segment {
+            o,
+            d,
+            view: -ray.1,
+            t_in,
+            t_out,
+            t0,
+            walk,
+            pixel,
+            pass,
+        };
+        let lane = Lane {
+            o,
+            d,
+            view: -ray.1,
+            t0,
+            t_end: seg.t_end(),
+            k0: 0,
+            k_end: 0,
+            last: None,
+        };
+        Some((lane, RunWalk::new(f, seg)))
+    }
+}
