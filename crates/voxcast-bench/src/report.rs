@@ -144,6 +144,10 @@ pub struct Measured {
     pub identical: bool,
     /// SSIM against the reference (1 for identical images).
     pub ssim: f64,
+    /// The SIMD level the CPU ray loop ran at (`avx2`, `avx512`); absent
+    /// where the scalar loop ran, and on the GPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub simd: Option<&'static str>,
 }
 
 /// One method's row.

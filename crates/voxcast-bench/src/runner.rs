@@ -331,6 +331,7 @@ pub fn run_cancellable(
                     psnr_db: psnr,
                     identical: psnr.is_infinite(),
                     ssim,
+                    simd: st.simd.map(|l| l.name()),
                 })
             }
             _ => None,

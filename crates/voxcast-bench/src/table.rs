@@ -148,6 +148,23 @@ fn preamble(r: &BenchReport) -> Vec<String> {
             })
         })
         .collect();
+    // On a CPU with packets, the methods that ran the scalar loop.
+    let scalar: Vec<&str> = r
+        .methods
+        .iter()
+        .filter(|m| {
+            m.measured.as_ref().is_some_and(|x| x.simd.is_none())
+                && r.run.device == "cpu"
+                && r.machine.simd != "none"
+        })
+        .map(|m| m.name.as_str())
+        .collect();
+    if !scalar.is_empty() {
+        lines.push(format!(
+            "Scalar loop (these methods do not run in the SIMD packets yet): {}.",
+            scalar.join(", ")
+        ));
+    }
     if !on_device.is_empty() {
         lines.push(format!(
             "(GPU ms): the compute passes alone, by timestamp queries; the wall time adds writing the parameters, reading the image back and averaging it on the CPU. On the device: {}.",

@@ -397,6 +397,7 @@ impl GpuRenderer {
             capped_paths: 0,
             seconds: start.elapsed().as_secs_f64(),
             device_seconds,
+            simd: None,
         };
         Ok((image, stats))
     }

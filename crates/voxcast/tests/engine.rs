@@ -252,6 +252,8 @@ fn packets_give_the_scalar_pixels() {
                             // faces; a rounding at a face may differ).
                             let (a, b) = (ss.samples as f64, sc.samples as f64);
                             assert!((a - b).abs() <= 1e-3 * b, "{what}: samples {a} vs {b}");
+                            assert_eq!(ss.simd.map(|l| l.name()), Some(name), "{what}");
+                            assert_eq!(sc.simd, None, "{what}");
                         }
                         terminated += sc.early_terminated;
                     }
@@ -328,6 +330,9 @@ fn step_per_block_packets_give_the_scalar_pixels() {
                         );
                         assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
                         assert!(sc.samples > 0, "{what}: nothing sampled");
+                        // The stats say which loop ran.
+                        assert_eq!(ss.simd.map(|l| l.name()), Some(name), "{what}");
+                        assert_eq!(sc.simd, None, "{what}");
                     }
                     terminated += sc.early_terminated;
                     if grouped && sc.interpolations < sc.samples {

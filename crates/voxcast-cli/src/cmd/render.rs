@@ -104,8 +104,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
     )?;
     outputs.commit()?;
     if !quiet {
+        // Where the CPU ray loop ran: the SIMD packets, or the scalar loop.
+        let simd = match (stats.device_seconds, stats.simd) {
+            (None, Some(l)) if device.describe().starts_with("cpu") => {
+                format!(", SIMD {}", l.name())
+            }
+            (None, None) if device.describe().starts_with("cpu") => ", scalar loop".to_string(),
+            _ => String::new(),
+        };
         eprintln!(
-            "wrote {} ({}×{}) in {:.3} s on {}: {} rays, {} samples ({:.1} M/s), {} early-terminated",
+            "wrote {} ({}×{}) in {:.3} s on {}{simd}: {} rays, {} samples ({:.1} M/s), {} early-terminated",
             out.display(),
             image.width,
             image.height,

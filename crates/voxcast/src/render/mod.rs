@@ -614,7 +614,7 @@ impl Job<'_> {
             runs,
         };
         let (passes, bg) = (self.passes(), self.background());
-        Some(tiles::render_tile_rows(
+        let out = tiles::render_tile_rows(
             p.width,
             p.height,
             self.progress,
@@ -638,7 +638,17 @@ impl Job<'_> {
                 }
             },
             |_, _| {},
-        ))
+        );
+        // The stats say the packets ran, and at which level.
+        Some(out.map(|(img, st)| {
+            (
+                img,
+                RenderStats {
+                    simd: Some(level),
+                    ..st
+                },
+            )
+        }))
     }
 
     /// S0's grouped interpolation, for the marchers it applies to.

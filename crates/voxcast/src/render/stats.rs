@@ -29,6 +29,11 @@ pub struct RenderStats {
     /// excluded); `None` on the CPU or where the adapter has no timestamps.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub device_seconds: Option<f64>,
+    /// The SIMD level the CPU ray loop ran at (`avx2`, `avx512`); `None`
+    /// where the scalar loop ran (the method or the CPU has no packets,
+    /// `--simd scalar`) and on the GPU.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub simd: Option<super::packet::Level>,
 }
 
 fn is_zero(n: &u64) -> bool {
@@ -45,6 +50,7 @@ impl RenderStats {
         self.gradient_interpolations += o.gradient_interpolations;
         self.early_terminated += o.early_terminated;
         self.capped_paths += o.capped_paths;
+        self.simd = self.simd.or(o.simd);
     }
 
     /// Samples per second of wall time.

@@ -718,6 +718,7 @@ impl<'s> OutOfCore<'s> {
             capped_paths: 0,
             seconds: start.elapsed().as_secs_f64(),
             device_seconds: None,
+            simd: packets,
         };
         Ok((pixels, rs, stats))
     }

@@ -53,7 +53,8 @@ pub(in crate::render) use runs::{Adapt, Runs};
 pub(super) const LANES: usize = 8;
 
 /// The instruction set a packet is compiled for, picked at run time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Level {
     /// AVX2 + FMA: eight lanes in 256-bit registers, sixteen of them.
     Avx2,
