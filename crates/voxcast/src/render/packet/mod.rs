@@ -248,6 +248,18 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         })
     }
 
+    /// Where pixel `pixel`'s sample grid starts on a ray entering at
+    /// `t_in`: moved on by its jitter offset for pass `pass` where the
+    /// render jitters (as [`super::trace::trace`]).
+    fn grid_start(&self, t_in: f32, pixel: (u32, u32), pass: u32) -> f32 {
+        match self.jitter {
+            Some(seed) => {
+                t_in + super::rng::pixel_sequence(seed, pixel.0, pixel.1, pass) * self.f.step
+            }
+            None => t_in,
+        }
+    }
+
     /// Sets up the ray of pixel `pixel` (`ray`: world origin and unit
     /// direction), or `None` when it meets nothing to sample.
     fn lane(
@@ -257,7 +269,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         pass: u32,
         stats: &mut RenderStats,
     ) -> Option<Lane> {
-        let f = self.f;
         let Setup {
             o,
             d,
@@ -265,10 +276,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             t_out,
             walk,
         } = self.setup(ray, stats)?;
-        let t0 = match self.jitter {
-            Some(seed) => t_in + super::rng::pixel_sequence(seed, pixel.0, pixel.1, pass) * f.step,
-            None => t_in,
-        };
+        let t0 = self.grid_start(t_in, pixel, pass);
         let st = self.st;
         let k0 = ((walk.0 - t0) / st).ceil().max(0.0) as u32;
         let n1 = ((t_out - t0) / st).ceil().max(0.0) as u32;

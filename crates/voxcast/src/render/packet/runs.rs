@@ -91,12 +91,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             t_out,
             walk,
         } = self.setup(ray, stats)?;
-        let t0 = match self.jitter {
-            Some(seed) => {
-                t_in + crate::render::rng::pixel_sequence(seed, pixel.0, pixel.1, pass) * f.step
-            }
-            None => t_in,
-        };
+        let t0 = self.grid_start(t_in, pixel, pass);
         let seg = Segment {
             o,
             d,
