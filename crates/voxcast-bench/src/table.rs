@@ -149,14 +149,11 @@ fn preamble(r: &BenchReport) -> Vec<String> {
         })
         .collect();
     // On a CPU with packets, the methods that ran the scalar loop.
+    let packets_here = r.run.device == "cpu" && r.machine.simd != "none";
     let scalar: Vec<&str> = r
         .methods
         .iter()
-        .filter(|m| {
-            m.measured.as_ref().is_some_and(|x| x.simd.is_none())
-                && r.run.device == "cpu"
-                && r.machine.simd != "none"
-        })
+        .filter(|m| packets_here && m.measured.as_ref().is_some_and(|x| x.simd.is_none()))
         .map(|m| m.name.as_str())
         .collect();
     if !scalar.is_empty() {

@@ -105,12 +105,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     outputs.commit()?;
     if !quiet {
         // Where the CPU ray loop ran: the SIMD packets, or the scalar loop.
-        let simd = match (stats.device_seconds, stats.simd) {
-            (None, Some(l)) if device.describe().starts_with("cpu") => {
-                format!(", SIMD {}", l.name())
-            }
-            (None, None) if device.describe().starts_with("cpu") => ", scalar loop".to_string(),
-            _ => String::new(),
+        let simd = match (&device, stats.simd) {
+            (Device::Cpu, Some(l)) => format!(", SIMD {}", l.name()),
+            (Device::Cpu, None) => ", scalar loop".to_string(),
+            (Device::Gpu(_), _) => String::new(),
         };
         eprintln!(
             "wrote {} ({}×{}) in {:.3} s on {}{simd}: {} rays, {} samples ({:.1} M/s), {} early-terminated",

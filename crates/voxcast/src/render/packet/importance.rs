@@ -100,17 +100,8 @@ impl<T: Voxel, R: super::Runs<T>> Packets<'_, T, R> {
         } = self.setup(ray, stats)?;
         let walker = BlockWalker::new(o, d, walk.0, walk.1, f.block_size, f.block_counts).staying();
         let xi = crate::render::rng::pixel_sequence(f.seed, pixel.0, pixel.1, pass);
-        let lane = Lane {
-            o,
-            d,
-            view: -ray.1,
-            t0: t_in,
-            // No jitter offset: the stretches end at the exit.
-            t_end: t_out,
-            k0: 0,
-            k_end: 0,
-            last: None,
-        };
+        // No jitter offset: the stretches end at the exit.
+        let lane = Lane::walking(o, d, -ray.1, t_in, t_out);
         Some((
             lane,
             ImpLane {

@@ -211,6 +211,23 @@ pub(super) struct Lane {
     pub last: Option<u32>,
 }
 
+impl Lane {
+    /// A lane that walks its ray (`importance`, a step-per-block march):
+    /// no fixed-step samples, its stretches handed out by its walk.
+    fn walking(o: Vec3, d: Vec3, view: Vec3, t0: f32, t_end: f32) -> Lane {
+        Lane {
+            o,
+            d,
+            view,
+            t0,
+            t_end,
+            k0: 0,
+            k_end: 0,
+            last: None,
+        }
+    }
+}
+
 /// A lane's ray as [`super::trace::trace`] sets it up: origin and direction
 /// in voxel coordinates, entry and exit, and the stretch that meets blocks
 /// that are not empty.
@@ -339,68 +356,23 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut count = [[0u32; 3]; LANES];
         let mut alive = [false; LANES];
         let mut walk = Counters::default();
+        let mut st = State {
+            imp: &mut imp,
+            runs: &mut runs,
+            acc: &mut acc,
+            count: &mut count,
+            alive: &mut alive,
+            walk: &mut walk,
+        };
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
         // grid and `shades` for the shading.
         #[cfg(target_arch = "x86_64")]
         unsafe {
-            let mut st = State {
-                imp: &mut imp,
-                runs: &mut runs,
-                acc: &mut acc,
-                count: &mut count,
-                alive: &mut alive,
-                walk: &mut walk,
-            };
-            let shade = self.shading.is_some();
-            // `importance`: no skipping (its pdf has no mass in empty
-            // blocks), the lanes' walks in `imp`; a step-per-block march:
-            // skipping in the walk, grouped reuse or not.
-            macro_rules! go {
-                ($f:ident) => {
-                    match (R::ON, self.imp.is_some(), self.empty.is_some(), shade) {
-                        (true, _, _, false) => match self.runs.is_some_and(|r| r.grouped()) {
-                            false => {
-                                avx2::$f::<T, R, false, false, false, false>(self, &lanes, &mut st)
-                            }
-                            true => {
-                                avx2::$f::<T, R, false, false, false, true>(self, &lanes, &mut st)
-                            }
-                        },
-                        (true, _, _, true) => match self.runs.is_some_and(|r| r.grouped()) {
-                            false => {
-                                avx2::$f::<T, R, false, true, false, false>(self, &lanes, &mut st)
-                            }
-                            true => {
-                                avx2::$f::<T, R, false, true, false, true>(self, &lanes, &mut st)
-                            }
-                        },
-                        (false, true, _, false) => {
-                            avx2::$f::<T, R, false, false, true, false>(self, &lanes, &mut st)
-                        }
-                        (false, true, _, true) => {
-                            avx2::$f::<T, R, false, true, true, false>(self, &lanes, &mut st)
-                        }
-                        (false, false, false, false) => {
-                            avx2::$f::<T, R, false, false, false, false>(self, &lanes, &mut st)
-                        }
-                        (false, false, true, false) => {
-                            avx2::$f::<T, R, true, false, false, false>(self, &lanes, &mut st)
-                        }
-                        (false, false, false, true) => {
-                            avx2::$f::<T, R, false, true, false, false>(self, &lanes, &mut st)
-                        }
-                        (false, false, true, true) => {
-                            avx2::$f::<T, R, true, true, false, false>(self, &lanes, &mut st)
-                        }
-                    }
-                };
-            }
-            match self.level {
-                Level::Avx2 => go!(march_avx2),
-                Level::Avx512 => go!(march_avx512),
-            }
+            self.dispatch(&lanes, &mut st)
         };
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = &mut st;
         let mut n = Counters::default();
         for i in 0..rays.len() {
             let Some(l) = lanes[i] else { continue };
@@ -455,31 +427,65 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // `block_counts`.
         #[cfg(target_arch = "x86_64")]
         unsafe {
-            macro_rules! go {
-                ($f:ident) => {
-                    match (self.empty.is_some(), self.shading.is_some()) {
-                        (false, false) => {
-                            avx2::$f::<T, R, false, false, false, false>(self, lanes, &mut st)
-                        }
-                        (true, false) => {
-                            avx2::$f::<T, R, true, false, false, false>(self, lanes, &mut st)
-                        }
-                        (false, true) => {
-                            avx2::$f::<T, R, false, true, false, false>(self, lanes, &mut st)
-                        }
-                        (true, true) => {
-                            avx2::$f::<T, R, true, true, false, false>(self, lanes, &mut st)
-                        }
-                    }
-                };
-            }
-            match self.level {
-                Level::Avx2 => go!(march_avx2),
-                Level::Avx512 => go!(march_avx512),
-            }
+            self.dispatch(lanes, &mut st)
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = (lanes, &mut st);
+    }
+
+    /// Runs the vector loop compiled for this render's choices —
+    /// skipping, shading, `importance`, grouped runs — at the packets'
+    /// level.
+    ///
+    /// # Safety
+    /// `self.level` from [`level`] on this CPU; the grid [`fits`], the
+    /// shading [`shades`]; `empty`, when given, a flag per block.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn dispatch(&self, lanes: &[Option<Lane>; LANES], st: &mut State<'_>) {
+        let grouped = self.runs.is_some_and(|r| r.grouped());
+        let choice = (
+            self.empty.is_some(),
+            self.shading.is_some(),
+            self.imp.is_some(),
+            grouped,
+        );
+        macro_rules! go {
+            ($f:ident) => {
+                match choice {
+                    (false, false, false, false) => {
+                        avx2::$f::<T, R, false, false, false, false>(self, lanes, st)
+                    }
+                    (true, false, false, false) => {
+                        avx2::$f::<T, R, true, false, false, false>(self, lanes, st)
+                    }
+                    (false, true, false, false) => {
+                        avx2::$f::<T, R, false, true, false, false>(self, lanes, st)
+                    }
+                    (true, true, false, false) => {
+                        avx2::$f::<T, R, true, true, false, false>(self, lanes, st)
+                    }
+                    (false, false, true, false) => {
+                        avx2::$f::<T, R, false, false, true, false>(self, lanes, st)
+                    }
+                    (false, true, true, false) => {
+                        avx2::$f::<T, R, false, true, true, false>(self, lanes, st)
+                    }
+                    (false, false, false, true) => {
+                        avx2::$f::<T, R, false, false, false, true>(self, lanes, st)
+                    }
+                    (false, true, false, true) => {
+                        avx2::$f::<T, R, false, true, false, true>(self, lanes, st)
+                    }
+                    // `Job::packets` skips only on the fixed step, and
+                    // groups only in runs.
+                    _ => unreachable!("packets: skipping with a walk, or grouping without runs"),
+                }
+            };
+        }
+        match self.level {
+            Level::Avx2 => go!(march_avx2),
+            Level::Avx512 => go!(march_avx512),
+        }
     }
 
     /// The last sample of lane `l` (index `k`), composited over its

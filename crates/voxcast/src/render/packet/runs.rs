@@ -103,16 +103,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             pixel,
             pass,
         };
-        let lane = Lane {
-            o,
-            d,
-            view: -ray.1,
-            t0,
-            t_end: seg.t_end(),
-            k0: 0,
-            k_end: 0,
-            last: None,
-        };
+        let lane = Lane::walking(o, d, seg.view, t0, seg.t_end());
         Some((lane, RunWalk::new(f, seg)))
     }
 }
