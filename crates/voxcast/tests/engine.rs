@@ -267,6 +267,84 @@ fn packets_give_the_scalar_pixels() {
     }
 }
 
+/// Skipping by distance: a lane in an empty block jumps over the whole
+/// empty cube around it (`packet::skip_distances`), not one block at a
+/// time. Two small blobs in opposite corners of a larger volume leave
+/// empty blocks up to four blocks from anything visible between them,
+/// and the rays cross those stretches at every angle; at every level this
+/// CPU has, the packets give the scalar pixels with the same samples
+/// (a jump passes only samples the scalar march skips too).
+#[test]
+fn packets_jump_the_empty_space_and_keep_the_samples() {
+    use voxcast::volume::VoxelData;
+    let dims = [83usize, 71, 64];
+    let blobs = [
+        (glam::Vec3::new(9.0, 8.0, 7.0), 5.0),
+        (glam::Vec3::new(72.0, 61.0, 55.0), 6.0),
+    ];
+    let mut f = Vec::with_capacity(dims.iter().product());
+    for k in 0..dims[2] {
+        for j in 0..dims[1] {
+            for i in 0..dims[0] {
+                let p = glam::Vec3::new(i as f32, j as f32, k as f32);
+                let v: f32 = blobs
+                    .iter()
+                    .map(|(c, r)| (-(p - *c).length_squared() / (r * r)).exp())
+                    .sum();
+                f.push((v.min(1.0) * 255.0) as u8);
+            }
+        }
+    }
+    let vol = voxcast::Volume::new(
+        dims,
+        glam::Vec3::ONE,
+        glam::Vec3::ZERO,
+        VoxelData::U8(f.into()),
+    )
+    .unwrap();
+    let tf = TransferFunction {
+        color: vec![[0.0, 1.0, 0.5, 0.2], [1.0, 0.3, 0.6, 1.0]],
+        opacity: vec![[0.0, 0.0], [0.3, 0.0], [0.6, 0.5], [1.0, 0.9]],
+        window: None,
+    };
+    let r = Renderer::new(&vol, [0.0, 255.0]).unwrap();
+    let mut samples = 0;
+    for (azimuth, elevation) in [(30.0, 20.0), (-135.0, -40.0), (90.0, 0.0), (47.0, 71.0)] {
+        let cam = CameraParams {
+            azimuth,
+            elevation,
+            ..Default::default()
+        };
+        for shading in [false, true] {
+            let mut p = RenderParams {
+                width: 64,
+                height: 48,
+                shading,
+                step: 0.41,
+                ..Default::default()
+            };
+            p.simd = Simd::Scalar;
+            let (scalar, sc) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+            for (level, name) in simd_levels() {
+                p.simd = level;
+                let (simd, ss) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+                let what =
+                    format!("{name}: azimuth {azimuth} elevation {elevation} shading {shading}");
+                let d = max_diff(&simd, &scalar);
+                assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
+                assert_eq!(ss.samples, sc.samples, "{what}");
+                assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
+                assert_eq!(ss.simd.map(|l| l.name()), Some(name), "{what}");
+            }
+            samples += sc.samples;
+        }
+    }
+    assert!(
+        samples > 0,
+        "the blobs were not seen: the test lost its teeth"
+    );
+}
+
 /// The step-per-block marches in the packets (each lane walks its blocks
 /// with the scalar march's own walk, run by run, and the vector loop
 /// samples the runs), at every level this CPU has, against the scalar

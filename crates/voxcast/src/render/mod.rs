@@ -88,9 +88,29 @@ struct Derived {
     octree: std::sync::OnceLock<octree::Octree>,
     /// The `importance` pdf of the last transfer function it was asked for.
     pdf: std::sync::Mutex<Option<(TransferFunction, Arc<Vec<stochastic::PdfBlock>>)>>,
+    /// The packets' skip distances ([`packet::skip_distances`]) of the
+    /// last emptiness they were asked for.
+    skip: std::sync::Mutex<Option<SkipCache>>,
 }
 
+/// Block emptiness and the skip distances it gives.
+type SkipCache = (Vec<bool>, Arc<Vec<i32>>);
+
 impl Derived {
+    /// The skip distances of the blocks under `empty` (built once per
+    /// emptiness, so once per transfer function).
+    fn skip_distances(&self, empty: &[bool]) -> Arc<Vec<i32>> {
+        let mut cache = self.skip.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((e, d)) = cache.as_ref() {
+            if e == empty {
+                return d.clone();
+            }
+        }
+        let d = Arc::new(packet::skip_distances(|i| empty[i], self.blocks.counts));
+        *cache = Some((empty.to_vec(), d.clone()));
+        d
+    }
+
     /// The `importance` pdf per block for `tf` (built once per transfer
     /// function: it reads every voxel for the blocks' mean extinction).
     fn pdf(
@@ -186,6 +206,7 @@ impl<'v> Renderer<'v> {
             max_gradient: std::sync::OnceLock::new(),
             octree: std::sync::OnceLock::new(),
             pdf: std::sync::Mutex::new(None),
+            skip: std::sync::Mutex::new(None),
         });
         list.push((size, d.clone()));
         d
@@ -300,6 +321,7 @@ impl<'v> Renderer<'v> {
             progress,
             cancel,
             blocks: &derived.blocks,
+            derived: &derived,
             empty,
             block_k,
             surface: self.geometry.as_deref().map(|g| surface::SurfaceCtx {
@@ -331,6 +353,7 @@ struct Job<'a> {
     pdf: &'a [stochastic::PdfBlock],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
+    derived: &'a Derived,
     empty: Vec<bool>,
     /// The adaptive methods' `k` per block: the largest derivative
     /// (`adaptive-max`) or the change of the classified signal
@@ -597,8 +620,8 @@ impl Job<'_> {
         };
         // `importance` skips nothing (its pdf has no mass in empty blocks);
         // a step-per-block march skips in its walk.
-        let empty: Option<Vec<i32>> = (f.skip_empty && imp.is_none() && runs.is_none())
-            .then(|| f.empty.iter().map(|&e| -(e as i32)).collect());
+        let empty = (f.skip_empty && imp.is_none() && runs.is_none())
+            .then(|| self.derived.skip_distances(f.empty));
         let pk = packet::Packets {
             f,
             q: &t.level_tables[0],
@@ -606,7 +629,7 @@ impl Job<'_> {
             weights: Weights::of(p.optical),
             stop: composite::ert_stop(p.ert),
             jitter: self.jitter_seed(),
-            empty: empty.as_deref(),
+            empty: empty.as_ref().map(|e| e.as_slice()),
             shading,
             z_pairs,
             level,
@@ -614,26 +637,40 @@ impl Job<'_> {
             runs,
         };
         let (passes, bg) = (self.passes(), self.background());
-        let out = tiles::render_tile_rows(
+        // A packet is a square of 4×4 pixels (of a 16×16 tile): its rays
+        // stay closer together than a row's, so their lengths and the
+        // voxels they fetch differ less.
+        const SIDE: u32 = 4;
+        let out = tiles::render_whole_tiles(
             p.width,
             p.height,
             self.progress,
             self.cancel,
             || (),
-            |_, stats, x0, y, out| {
-                for (j, chunk) in out.chunks_mut(packet::LANES).enumerate() {
-                    let x = x0 + (j * packet::LANES) as u32;
-                    let n = chunk.len();
-                    let mut rays = [(Vec3::ZERO, Vec3::ZERO); packet::LANES];
-                    for (i, r) in rays[..n].iter_mut().enumerate() {
-                        *r = self.cam.ray(x + i as u32, y);
-                    }
-                    let mut acc = [glam::Vec4::ZERO; packet::LANES];
-                    for pass in 0..passes {
-                        pk.row(&rays[..n], (x, y), pass, &mut acc[..n], stats);
-                    }
-                    for (px, c) in chunk.iter_mut().zip(acc) {
-                        *px = over_background(c / passes as f32, bg);
+            |_, stats, (tx, ty, tw), px| {
+                let th = px.len() as u32 / tw;
+                for by in (0..th).step_by(SIDE as usize) {
+                    for bx in (0..tw).step_by(SIDE as usize) {
+                        let mut pixels = [(0u32, 0u32); packet::LANES];
+                        let mut n = 0;
+                        for y in by..(by + SIDE).min(th) {
+                            for x in bx..(bx + SIDE).min(tw) {
+                                pixels[n] = (tx + x, ty + y);
+                                n += 1;
+                            }
+                        }
+                        let mut rays = [(Vec3::ZERO, Vec3::ZERO); packet::LANES];
+                        for (r, &(x, y)) in rays[..n].iter_mut().zip(&pixels[..n]) {
+                            *r = self.cam.ray(x, y);
+                        }
+                        let mut acc = [glam::Vec4::ZERO; packet::LANES];
+                        for pass in 0..passes {
+                            pk.render(&rays[..n], &pixels[..n], pass, &mut acc[..n], stats);
+                        }
+                        for (&(x, y), c) in pixels[..n].iter().zip(acc) {
+                            let i = ((y - ty) * tw + (x - tx)) as usize;
+                            px[i] = over_background(c / passes as f32, bg);
+                        }
                     }
                 }
             },

@@ -27,31 +27,33 @@ pub(super) fn render_tiles<S>(
     pixel: impl Fn(&mut S, &mut RenderStats, u32, u32) -> [f32; 4] + Sync,
     finish: impl Fn(S, &mut RenderStats) + Sync,
 ) -> Option<(Image, RenderStats)> {
-    render_tile_rows(
+    render_whole_tiles(
         w,
         h,
         progress,
         cancel,
         state,
-        |s, stats, x0, y, out| {
+        |s, stats, (tx, ty, tw), out| {
             for (i, px) in out.iter_mut().enumerate() {
-                *px = pixel(s, stats, x0 + i as u32, y);
+                let i = i as u32;
+                *px = pixel(s, stats, tx + i % tw, ty + i / tw);
             }
         },
         finish,
     )
 }
 
-/// [`render_tiles`] a tile row at a time: `row(state, stats, x0, y, out)`
-/// fills pixels `x0..x0 + out.len()` of row `y` (at most [`TILE`]), for
-/// integrators that trace neighbouring rays together (the SIMD packets).
-pub(super) fn render_tile_rows<S>(
+/// [`render_tiles`] a whole tile at a time: `tile(state, stats, (x0, y0,
+/// width), out)` fills the tile of `out.len() / width` rows from `(x0,
+/// y0)`, row by row, for integrators that trace neighbouring rays
+/// together (the SIMD packets).
+pub(super) fn render_whole_tiles<S>(
     w: u32,
     h: u32,
     progress: &(dyn Fn(usize, usize) + Sync),
     cancel: &AtomicBool,
     state: impl Fn() -> S + Sync,
-    row: impl Fn(&mut S, &mut RenderStats, u32, u32, &mut [[f32; 4]]) + Sync,
+    tile: impl Fn(&mut S, &mut RenderStats, (u32, u32, u32), &mut [[f32; 4]]) + Sync,
     finish: impl Fn(S, &mut RenderStats) + Sync,
 ) -> Option<(Image, RenderStats)> {
     let tiles_x = w.div_ceil(TILE);
@@ -72,9 +74,7 @@ pub(super) fn render_tile_rows<S>(
             let tw = (tx + TILE).min(w) - tx;
             let th = (ty + TILE).min(h) - ty;
             let mut px = vec![[0.0; 4]; (tw * th) as usize];
-            for (r, out) in px.chunks_exact_mut(tw as usize).enumerate() {
-                row(&mut s, &mut stats, tx, ty + r as u32, out);
-            }
+            tile(&mut s, &mut stats, (tx, ty, tw), &mut px);
             finish(s, &mut stats);
             let n = done.fetch_add(1, Ordering::Relaxed) + 1;
             progress(n, total);

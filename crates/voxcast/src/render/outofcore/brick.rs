@@ -34,8 +34,8 @@ pub(super) struct FrameArgs<'a> {
     pub(super) window: [f32; 2],
     /// The SIMD packets' instruction set, `None` for the scalar loop.
     pub(super) packets: Option<crate::render::packet::Level>,
-    /// The brick's cell flags and cell counts, for the packets to skip the
-    /// empty cells (`None`: empty-space skipping off).
+    /// The brick's cells' skip distances and cell counts, for the packets
+    /// to skip the empty cells (`None`: empty-space skipping off).
     pub(super) cells: Option<(&'a [i32], [usize; 3])>,
 }
 
@@ -236,9 +236,10 @@ impl CellRanges {
         (self.ranges.len() * std::mem::size_of::<(f32, f32)>()) as u64
     }
 
-    /// Each cell's flag in `flags` (−1 where nothing in it can show, the
-    /// packets' empty-block flag) and the box (voxel coordinates of the
-    /// buffer) around the cells that may show; `None` when none may.
+    /// Each cell's skip distance in `flags` (0 where something in it may
+    /// show; see [`crate::render::packet::skip_distances`]) and the box
+    /// (voxel coordinates of the buffer) around the cells that may show;
+    /// `None` when none may.
     pub(super) fn flags(
         &self,
         visible: &impl Fn(f32, f32) -> bool,
@@ -262,6 +263,8 @@ impl CellRanges {
         if lo[0] == usize::MAX {
             return None;
         }
+        let d = crate::render::packet::skip_distances(|i| flags[i] != 0, n);
+        *flags = d;
         let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
         let h = Vec3::from(hi.map(|c| ((c + 1) * CELL) as f32));
         Some((l, h))

@@ -3,7 +3,7 @@
 //! estimate), as [`crate::render::stochastic::systematic`] does, and hands
 //! the vector loop the stretch, spacing and table of its level.
 
-use super::{Lane, Packets, Setup, LANES};
+use super::{Lane, Packets, Setup};
 use crate::render::march::BlockWalker;
 use crate::render::stats::RenderStats;
 use crate::render::stochastic::{PdfBlock, BETA, MAX_LEVEL, NO_MASS};
@@ -30,16 +30,6 @@ pub(super) struct ImpLane {
     pub(super) tau: f32,
     /// The CDF offset ξ before the first stretch; NaN once the walk started.
     pub(super) xi: f32,
-}
-
-/// Where lane `i` samples next: position, spacing, end of its stretch,
-/// and the row offset of its level's table (in floats).
-#[derive(Clone, Copy, Default)]
-pub(super) struct ImpState {
-    pub(super) t: [f32; LANES],
-    pub(super) s: [f32; LANES],
-    pub(super) tb: [f32; LANES],
-    pub(super) off: [i32; LANES],
 }
 
 impl Imp<'_> {

@@ -1,35 +1,39 @@
-//! SIMD ray packets: eight neighbouring rays of a tile row marched in
-//! lock-step, one per lane of an AVX2 register, for the commonest render —
-//! a fixed step (`uniform`, `jitter`), trilinear, flat or Blinn–Phong
-//! shaded, front to back — and for `importance`, whose march is a fixed
-//! step per block: each lane walks its blocks in scalar code (once per
-//! block, for the block's pdf level) and the vector loop samples with its
-//! lane's spacing and reads its level's table.
+//! SIMD ray packets: the sixteen rays of a tile row marched in lock-step —
+//! in one AVX-512 register, or as two packets of eight in AVX2 registers —
+//! for the commonest render — a fixed step (`uniform`, `jitter`),
+//! trilinear, flat or Blinn–Phong shaded, front to back — for
+//! `importance`, whose march is a fixed step per block (each lane walks
+//! its blocks in scalar code, once per block, for the block's pdf level,
+//! and the vector loop samples with its lane's spacing and reads its
+//! level's table), and for the step-per-block marches (`adaptive` and its
+//! rules, S0's grouped reuse; [`runs`]).
 //!
 //! Each lane keeps its own ray: its sample grid `t₀ + k·s`, its first and
 //! last sample, and its accumulated colour and opacity; a lane mask drops
 //! the rays that have left the volume or terminated, and the packet ends
-//! when no lane is left. Per iteration the eight corner pairs of the
-//! trilinear fetch are four gathers (the +x neighbour comes in the same
-//! 32-bit load), the transfer-function lookup is four gathers from the
-//! premultiplied table, and compositing is plain vector arithmetic; shading
-//! adds the six trilinear fetches of the gradient, skipped when no lane's
-//! sample is visible. With
-//! empty-space skipping a lane whose sample falls in an empty block jumps
-//! to its first sample past that block (one gather of the block flags per
-//! iteration), so long empty stretches cost a lane one step per block.
+//! when no lane is left. Per iteration the corners of the trilinear fetch
+//! are two to four gathers (the +x neighbour comes in the same 32-bit
+//! load; u8 grids are read from a z-paired copy), the transfer-function
+//! rows are loaded whole and transposed, and compositing is plain vector
+//! arithmetic; shading adds the six trilinear fetches of the gradient,
+//! skipped when no lane's sample is visible. With empty-space skipping a
+//! lane whose sample falls in an empty block jumps to its first sample
+//! past the empty cube around that block ([`skip_distances`]: one gather
+//! of the blocks' distances per iteration), so a long empty stretch costs
+//! a lane a step or two, not a step per block.
 //!
-//! The arithmetic is the scalar path's, operation for operation (no fused
-//! multiply-adds where the scalar path has none), so a packet gives the
-//! scalar pixels to within the rounding of a few skipped-block boundaries.
-//! The last sample of a ray (its stretch ends at the volume's exit, not a
-//! full step) is composited by the scalar code, lane by lane.
+//! The vector code is written once over the [`simd::Simd`] operations and
+//! compiled at both widths. Its arithmetic is the scalar path's, operation
+//! for operation (no fused multiply-adds where the scalar path has none),
+//! so a packet gives the scalar pixels to within the rounding of a few
+//! skipped-block boundaries. The last sample of a ray (its stretch ends at
+//! the volume's exit, not a full step) is composited by the scalar code,
+//! lane by lane.
 //!
-//! Dispatch is at run time ([`level`]): x86-64 with AVX2 and FMA runs the
-//! eight lanes compiled for AVX2, or where the CPU has AVX-512 F/VL the
-//! same lanes compiled for it (thirty-two registers: nothing spills); any
-//! other machine, or `RenderParams::simd = scalar`, takes the scalar loop,
-//! which stays the reference.
+//! Dispatch is at run time ([`level`]): x86-64 with AVX-512 F runs the
+//! sixteen lanes in 512-bit registers with mask registers; with AVX2 and
+//! FMA, two packets of eight; any other machine, or `RenderParams::simd =
+//! scalar`, takes the scalar loop, which stays the reference.
 
 use super::composite::Weights;
 use super::march::intersect_box;
@@ -38,29 +42,32 @@ use super::ray::{Counters, Frame};
 use super::sample::{evaluate_premul, Flat, Phong};
 use super::shading::BlinnPhong;
 use super::stats::RenderStats;
+mod distance;
 mod importance;
 mod runs;
 
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
+pub(in crate::render) use distance::skip_distances;
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
-use importance::{ImpLane, ImpState};
+use importance::ImpLane;
 pub(in crate::render) use runs::{Adapt, Runs};
 
-/// Lanes of a packet.
-pub(super) const LANES: usize = 8;
+/// Lanes of a packet: one row of a tile. AVX-512 marches them in one
+/// register, AVX2 as two packets of eight.
+pub(super) const LANES: usize = 16;
 
 /// The instruction set a packet is compiled for, picked at run time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Level {
-    /// AVX2 + FMA: eight lanes in 256-bit registers, sixteen of them.
+    /// AVX2 + FMA: eight lanes in 256-bit registers (a tile row's
+    /// sixteen rays as two packets).
     Avx2,
-    /// The same eight lanes compiled with AVX-512 F/VL: thirty-two
-    /// registers (the loop's constants and lane state stay in registers
-    /// instead of spilling to the stack), masked blends.
+    /// AVX-512 F: sixteen lanes in 512-bit registers, lane masks in mask
+    /// registers, thirty-two registers.
     Avx512,
 }
 
@@ -80,8 +87,7 @@ pub fn level(simd: super::Simd) -> Option<Level> {
     {
         use super::Simd;
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
-        let avx512 =
-            std::is_x86_feature_detected!("avx512f") && std::is_x86_feature_detected!("avx512vl");
+        let avx512 = std::is_x86_feature_detected!("avx512f");
         match simd {
             Simd::Scalar => None,
             _ if !avx2 => None,
@@ -157,7 +163,9 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub stop: f32,
     /// Seed of the per-pixel start jitter.
     pub jitter: Option<u64>,
-    /// Block emptiness as 32-bit flags (−1 empty), with skipping on.
+    /// With skipping on, each block's skip distance: 0 where it is not
+    /// empty, else how far the empty space around it reaches
+    /// ([`skip_distances`]).
     pub empty: Option<&'a [i32]>,
     /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
     /// flat colour.
@@ -184,12 +192,27 @@ pub(super) fn shades(bp: &BlinnPhong) -> bool {
 /// interpolations) and whether it is still going; `walk` gets what the
 /// walks count (`adaptive-s0`'s gradients).
 struct State<'s> {
-    imp: &'s mut [Option<ImpLane>; LANES],
-    runs: &'s mut [Option<RunWalk>; LANES],
-    acc: &'s mut [Vec4; LANES],
-    count: &'s mut [[u32; 3]; LANES],
-    alive: &'s mut [bool; LANES],
+    imp: &'s mut [Option<ImpLane>],
+    runs: &'s mut [Option<RunWalk>],
+    acc: &'s mut [Vec4],
+    count: &'s mut [[u32; 3]],
+    alive: &'s mut [bool],
     walk: &'s mut Counters,
+}
+
+impl State<'_> {
+    /// The state of lanes `r` (for a narrower packet).
+    #[cfg(target_arch = "x86_64")]
+    fn part(&mut self, r: std::ops::Range<usize>) -> State<'_> {
+        State {
+            imp: &mut self.imp[r.clone()],
+            runs: &mut self.runs[r.clone()],
+            acc: &mut self.acc[r.clone()],
+            count: &mut self.count[r.clone()],
+            alive: &mut self.alive[r],
+            walk: self.walk,
+        }
+    }
 }
 
 /// One lane's ray, set up by the scalar code as [`super::trace::trace`]
@@ -319,12 +342,12 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         })
     }
 
-    /// Renders pixels `x0..x0 + out.len()` (at most [`LANES`]) of row `y`
+    /// Renders the pixels `pixels` (at most [`LANES`], `rays` their rays)
     /// for pass `pass`, adding premultiplied colour and opacity to `out`.
-    pub fn row(
+    pub fn render(
         &self,
         rays: &[(Vec3, Vec3)],
-        (x0, y): (u32, u32),
+        pixels: &[(u32, u32)],
         pass: u32,
         out: &mut [Vec4],
         stats: &mut RenderStats,
@@ -333,8 +356,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut lanes = [None; LANES];
         let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
         let mut runs: [Option<RunWalk>; LANES] = std::array::from_fn(|_| None);
-        for (i, &r) in rays.iter().enumerate() {
-            let pixel = (x0 + i as u32, y);
+        for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
             lanes[i] = if R::ON {
                 self.run_lane(r, pixel, pass, stats).map(|(l, w)| {
                     runs[i] = Some(w);
@@ -421,7 +443,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             alive,
             walk: &mut walk,
         };
-        // SAFETY: as in `row`: the caller took `level` from [`level`],
+        // SAFETY: as in `render`: the caller took `level` from [`level`],
         // checked [`fits`] for the grid and [`shades`] for the shading;
         // `empty`, when given, holds a flag per block of the frame's
         // `block_counts`.
@@ -453,28 +475,28 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             ($f:ident) => {
                 match choice {
                     (false, false, false, false) => {
-                        avx2::$f::<T, R, false, false, false, false>(self, lanes, st)
+                        vector::$f::<T, R, false, false, false, false>(self, lanes, st)
                     }
                     (true, false, false, false) => {
-                        avx2::$f::<T, R, true, false, false, false>(self, lanes, st)
+                        vector::$f::<T, R, true, false, false, false>(self, lanes, st)
                     }
                     (false, true, false, false) => {
-                        avx2::$f::<T, R, false, true, false, false>(self, lanes, st)
+                        vector::$f::<T, R, false, true, false, false>(self, lanes, st)
                     }
                     (true, true, false, false) => {
-                        avx2::$f::<T, R, true, true, false, false>(self, lanes, st)
+                        vector::$f::<T, R, true, true, false, false>(self, lanes, st)
                     }
                     (false, false, true, false) => {
-                        avx2::$f::<T, R, false, false, true, false>(self, lanes, st)
+                        vector::$f::<T, R, false, false, true, false>(self, lanes, st)
                     }
                     (false, true, true, false) => {
-                        avx2::$f::<T, R, false, true, true, false>(self, lanes, st)
+                        vector::$f::<T, R, false, true, true, false>(self, lanes, st)
                     }
                     (false, false, false, true) => {
-                        avx2::$f::<T, R, false, false, false, true>(self, lanes, st)
+                        vector::$f::<T, R, false, false, false, true>(self, lanes, st)
                     }
                     (false, true, false, true) => {
-                        avx2::$f::<T, R, false, true, false, true>(self, lanes, st)
+                        vector::$f::<T, R, false, true, false, true>(self, lanes, st)
                     }
                     // `Job::packets` skips only on the fixed step, and
                     // groups only in runs.
@@ -528,4 +550,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 }
 
 #[cfg(target_arch = "x86_64")]
-mod avx2;
+mod simd;
+#[cfg(target_arch = "x86_64")]
+mod vector;
+#[cfg(target_arch = "x86_64")]
+mod walk;

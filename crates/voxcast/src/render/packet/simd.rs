@@ -1,0 +1,95 @@
+//! The vector operations the packets' loop is written in, at two widths:
+//! eight lanes in AVX2 registers ([`W8`], lane masks as vectors) and
+//! sixteen in AVX-512 registers ([`W16`], lane masks in mask registers).
+//! The loop (`vector.rs`) is generic over [`Simd`], so both widths run the
+//! same code, operation for operation.
+//!
+//! Every function is `unsafe` and `#[inline(always)]`: it is only ever
+//! inlined into a function compiled for its instructions (`march_avx2`,
+//! `march_avx512`), and a value of these types exists only there.
+
+use std::ops::{Add, Div, Index, IndexMut, Mul, Sub};
+
+/// One width of lanes: floats `F`, 32-bit integers `I`, lane masks `M`,
+/// and their arrays (`Af`, `Ai`) for the scalar code around the loop.
+pub(super) trait Simd: Copy {
+    /// Lanes.
+    const N: usize;
+    type F: Copy
+        + Add<Output = Self::F>
+        + Sub<Output = Self::F>
+        + Mul<Output = Self::F>
+        + Div<Output = Self::F>;
+    type I: Copy + Add<Output = Self::I> + Sub<Output = Self::I>;
+    type M: Copy;
+    type Af: Copy + Default + Index<usize, Output = f32> + IndexMut<usize>;
+    type Ai: Copy + Default + Index<usize, Output = i32> + IndexMut<usize>;
+
+    unsafe fn splat(x: f32) -> Self::F;
+    unsafe fn load(a: Self::Af) -> Self::F;
+    unsafe fn store(v: Self::F) -> Self::Af;
+    unsafe fn min(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn max(a: Self::F, b: Self::F) -> Self::F;
+    unsafe fn floor(a: Self::F) -> Self::F;
+    unsafe fn ceil(a: Self::F) -> Self::F;
+    unsafe fn sqrt(a: Self::F) -> Self::F;
+    unsafe fn abs(a: Self::F) -> Self::F;
+    /// Truncated towards zero.
+    unsafe fn to_i(a: Self::F) -> Self::I;
+    unsafe fn lt(a: Self::F, b: Self::F) -> Self::M;
+    unsafe fn gt(a: Self::F, b: Self::F) -> Self::M;
+    unsafe fn ge(a: Self::F, b: Self::F) -> Self::M;
+    unsafe fn eq(a: Self::F, b: Self::F) -> Self::M;
+    /// `t` in the lanes of `m`, `f` elsewhere.
+    unsafe fn blend(m: Self::M, f: Self::F, t: Self::F) -> Self::F;
+    /// `v` in the lanes of `m`, zero elsewhere.
+    unsafe fn keep(m: Self::M, v: Self::F) -> Self::F;
+    /// Zero in the lanes of `m`, `v` elsewhere.
+    unsafe fn zero(m: Self::M, v: Self::F) -> Self::F;
+
+    unsafe fn splat_i(x: i32) -> Self::I;
+    unsafe fn load_i(a: Self::Ai) -> Self::I;
+    unsafe fn store_i(v: Self::I) -> Self::Ai;
+    unsafe fn to_f(a: Self::I) -> Self::F;
+    unsafe fn mullo(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn min_i(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn max_i(a: Self::I, b: Self::I) -> Self::I;
+    unsafe fn and_i(a: Self::I, b: Self::I) -> Self::I;
+    /// Shifts by `k` (a constant at every call, so an immediate).
+    unsafe fn srl(a: Self::I, k: i32) -> Self::I;
+    unsafe fn sll(a: Self::I, k: i32) -> Self::I;
+    unsafe fn sra(a: Self::I, k: i32) -> Self::I;
+    /// Shifts each lane right by its own count.
+    unsafe fn srlv(a: Self::I, k: Self::I) -> Self::I;
+    unsafe fn blend_i(m: Self::M, f: Self::I, t: Self::I) -> Self::I;
+    unsafe fn keep_i(m: Self::M, v: Self::I) -> Self::I;
+    /// `a + 1` in the lanes of `m`.
+    unsafe fn count(a: Self::I, m: Self::M) -> Self::I;
+    /// The lanes of `a` above zero.
+    unsafe fn positive(a: Self::I) -> Self::M;
+    /// 32-bit loads at byte offsets `idx · SCALE` from `p`.
+    unsafe fn gather<const SCALE: i32>(p: *const i32, idx: Self::I) -> Self::I;
+    unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: Self::I) -> Self::F;
+    /// The four channels of rows `i4 / 4` of a table of `[f32; 4]` rows
+    /// (`i4`: float offsets), one 128-bit load per lane and a transpose.
+    unsafe fn rows(table: *const f32, i4: Self::I) -> [Self::F; 4];
+
+    /// Lane `i` of `m` is bit `i`.
+    unsafe fn bits(m: Self::M) -> u32;
+    unsafe fn from_bits(b: u32) -> Self::M;
+    unsafe fn and(a: Self::M, b: Self::M) -> Self::M;
+    unsafe fn or(a: Self::M, b: Self::M) -> Self::M;
+    /// The lanes of `a` not in `b`.
+    unsafe fn but(a: Self::M, b: Self::M) -> Self::M;
+}
+
+/// Eight lanes in AVX2 registers.
+#[derive(Clone, Copy)]
+pub(super) struct W8;
+
+/// Sixteen lanes in AVX-512 registers.
+#[derive(Clone, Copy)]
+pub(super) struct W16;
+
+mod w16;
+mod w8;

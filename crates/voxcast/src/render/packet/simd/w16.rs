@@ -1,0 +1,266 @@
+//! [`W16`]: sixteen lanes in AVX-512 registers, lane masks in mask
+//! registers (`__mmask16`).
+
+use super::{Simd, W16};
+use std::arch::x86_64::*;
+
+/// Sixteen floats.
+#[derive(Clone, Copy)]
+pub(in crate::render::packet) struct F16(pub __m512);
+
+/// Sixteen 32-bit integers.
+#[derive(Clone, Copy)]
+pub(in crate::render::packet) struct I16(pub __m512i);
+
+// SAFETY (every `unsafe` block of this file): these values exist only
+// inside functions compiled for AVX-512 F (see the parent module).
+macro_rules! op {
+    ($t:ident, $tr:ident, $f:ident, $i:ident) => {
+        impl std::ops::$tr for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn $f(self, o: $t) -> $t {
+                unsafe { $t($i(self.0, o.0)) }
+            }
+        }
+    };
+}
+op!(F16, Add, add, _mm512_add_ps);
+op!(F16, Sub, sub, _mm512_sub_ps);
+op!(F16, Mul, mul, _mm512_mul_ps);
+op!(F16, Div, div, _mm512_div_ps);
+op!(I16, Add, add, _mm512_add_epi32);
+op!(I16, Sub, sub, _mm512_sub_epi32);
+
+/// `_MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC`, and towards +∞.
+const FLOOR: i32 = 0x09;
+const CEIL: i32 = 0x0A;
+
+/// `[a, b, c, d]` as the four 128-bit blocks of one register.
+#[inline(always)]
+unsafe fn quad(a: __m128, b: __m128, c: __m128, d: __m128) -> __m512 {
+    let lo = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(a), b);
+    let hi = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(c), d);
+    _mm512_castpd_ps(_mm512_insertf64x4::<1>(
+        _mm512_castpd256_pd512(_mm256_castps_pd(lo)),
+        _mm256_castps_pd(hi),
+    ))
+}
+
+impl Simd for W16 {
+    const N: usize = 16;
+    type F = F16;
+    type I = I16;
+    type M = __mmask16;
+    type Af = [f32; 16];
+    type Ai = [i32; 16];
+
+    #[inline(always)]
+    unsafe fn splat(x: f32) -> F16 {
+        F16(_mm512_set1_ps(x))
+    }
+    #[inline(always)]
+    unsafe fn load(a: [f32; 16]) -> F16 {
+        F16(_mm512_loadu_ps(a.as_ptr()))
+    }
+    #[inline(always)]
+    unsafe fn store(v: F16) -> [f32; 16] {
+        let mut a = [0f32; 16];
+        _mm512_storeu_ps(a.as_mut_ptr(), v.0);
+        a
+    }
+    #[inline(always)]
+    unsafe fn min(a: F16, b: F16) -> F16 {
+        F16(_mm512_min_ps(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn max(a: F16, b: F16) -> F16 {
+        F16(_mm512_max_ps(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn floor(a: F16) -> F16 {
+        F16(_mm512_roundscale_ps::<FLOOR>(a.0))
+    }
+    #[inline(always)]
+    unsafe fn ceil(a: F16) -> F16 {
+        F16(_mm512_roundscale_ps::<CEIL>(a.0))
+    }
+    #[inline(always)]
+    unsafe fn sqrt(a: F16) -> F16 {
+        F16(_mm512_sqrt_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn abs(a: F16) -> F16 {
+        F16(_mm512_abs_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn to_i(a: F16) -> I16 {
+        I16(_mm512_cvttps_epi32(a.0))
+    }
+    #[inline(always)]
+    unsafe fn lt(a: F16, b: F16) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn gt(a: F16, b: F16) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_GT_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn ge(a: F16, b: F16) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_GE_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn eq(a: F16, b: F16) -> __mmask16 {
+        _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn blend(m: __mmask16, f: F16, t: F16) -> F16 {
+        F16(_mm512_mask_blend_ps(m, f.0, t.0))
+    }
+    #[inline(always)]
+    unsafe fn keep(m: __mmask16, v: F16) -> F16 {
+        F16(_mm512_maskz_mov_ps(m, v.0))
+    }
+    #[inline(always)]
+    unsafe fn zero(m: __mmask16, v: F16) -> F16 {
+        F16(_mm512_maskz_mov_ps(!m, v.0))
+    }
+
+    #[inline(always)]
+    unsafe fn splat_i(x: i32) -> I16 {
+        I16(_mm512_set1_epi32(x))
+    }
+    #[inline(always)]
+    unsafe fn load_i(a: [i32; 16]) -> I16 {
+        I16(_mm512_loadu_si512(a.as_ptr() as *const _))
+    }
+    #[inline(always)]
+    unsafe fn store_i(v: I16) -> [i32; 16] {
+        let mut a = [0i32; 16];
+        _mm512_storeu_si512(a.as_mut_ptr() as *mut _, v.0);
+        a
+    }
+    #[inline(always)]
+    unsafe fn to_f(a: I16) -> F16 {
+        F16(_mm512_cvtepi32_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn mullo(a: I16, b: I16) -> I16 {
+        I16(_mm512_mullo_epi32(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn min_i(a: I16, b: I16) -> I16 {
+        I16(_mm512_min_epi32(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn max_i(a: I16, b: I16) -> I16 {
+        I16(_mm512_max_epi32(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn and_i(a: I16, b: I16) -> I16 {
+        I16(_mm512_and_si512(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn srl(a: I16, k: i32) -> I16 {
+        I16(_mm512_srl_epi32(a.0, _mm_cvtsi32_si128(k)))
+    }
+    #[inline(always)]
+    unsafe fn sll(a: I16, k: i32) -> I16 {
+        I16(_mm512_sll_epi32(a.0, _mm_cvtsi32_si128(k)))
+    }
+    #[inline(always)]
+    unsafe fn sra(a: I16, k: i32) -> I16 {
+        I16(_mm512_sra_epi32(a.0, _mm_cvtsi32_si128(k)))
+    }
+    #[inline(always)]
+    unsafe fn srlv(a: I16, k: I16) -> I16 {
+        I16(_mm512_srlv_epi32(a.0, k.0))
+    }
+    #[inline(always)]
+    unsafe fn blend_i(m: __mmask16, f: I16, t: I16) -> I16 {
+        I16(_mm512_mask_blend_epi32(m, f.0, t.0))
+    }
+    #[inline(always)]
+    unsafe fn keep_i(m: __mmask16, v: I16) -> I16 {
+        I16(_mm512_maskz_mov_epi32(m, v.0))
+    }
+    #[inline(always)]
+    unsafe fn count(a: I16, m: __mmask16) -> I16 {
+        I16(_mm512_mask_add_epi32(a.0, m, a.0, _mm512_set1_epi32(1)))
+    }
+    #[inline(always)]
+    unsafe fn positive(a: I16) -> __mmask16 {
+        _mm512_cmpgt_epi32_mask(a.0, _mm512_setzero_si512())
+    }
+    #[inline(always)]
+    unsafe fn gather<const SCALE: i32>(p: *const i32, idx: I16) -> I16 {
+        I16(_mm512_i32gather_epi32::<SCALE>(idx.0, p))
+    }
+    #[inline(always)]
+    unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: I16) -> F16 {
+        F16(_mm512_i32gather_ps::<SCALE>(idx.0, p))
+    }
+    #[inline(always)]
+    unsafe fn rows(table: *const f32, i4: I16) -> [F16; 4] {
+        // Register j holds rows j, j + 4, j + 8, j + 12 in its four
+        // 128-bit blocks; the transpose within blocks (as `W8::rows`)
+        // leaves block b with rows 4b … 4b + 3. (No closure: it would
+        // not inherit the caller's AVX-512.)
+        let ix = Self::store_i(i4);
+        let r: [__m128; 16] = [
+            _mm_loadu_ps(table.add(ix[0] as usize)),
+            _mm_loadu_ps(table.add(ix[1] as usize)),
+            _mm_loadu_ps(table.add(ix[2] as usize)),
+            _mm_loadu_ps(table.add(ix[3] as usize)),
+            _mm_loadu_ps(table.add(ix[4] as usize)),
+            _mm_loadu_ps(table.add(ix[5] as usize)),
+            _mm_loadu_ps(table.add(ix[6] as usize)),
+            _mm_loadu_ps(table.add(ix[7] as usize)),
+            _mm_loadu_ps(table.add(ix[8] as usize)),
+            _mm_loadu_ps(table.add(ix[9] as usize)),
+            _mm_loadu_ps(table.add(ix[10] as usize)),
+            _mm_loadu_ps(table.add(ix[11] as usize)),
+            _mm_loadu_ps(table.add(ix[12] as usize)),
+            _mm_loadu_ps(table.add(ix[13] as usize)),
+            _mm_loadu_ps(table.add(ix[14] as usize)),
+            _mm_loadu_ps(table.add(ix[15] as usize)),
+        ];
+        let a = [
+            quad(r[0], r[4], r[8], r[12]),
+            quad(r[1], r[5], r[9], r[13]),
+            quad(r[2], r[6], r[10], r[14]),
+            quad(r[3], r[7], r[11], r[15]),
+        ];
+        let t0 = _mm512_unpacklo_ps(a[0], a[1]);
+        let t1 = _mm512_unpacklo_ps(a[2], a[3]);
+        let t2 = _mm512_unpackhi_ps(a[0], a[1]);
+        let t3 = _mm512_unpackhi_ps(a[2], a[3]);
+        [
+            F16(_mm512_shuffle_ps::<0x44>(t0, t1)),
+            F16(_mm512_shuffle_ps::<0xEE>(t0, t1)),
+            F16(_mm512_shuffle_ps::<0x44>(t2, t3)),
+            F16(_mm512_shuffle_ps::<0xEE>(t2, t3)),
+        ]
+    }
+
+    #[inline(always)]
+    unsafe fn bits(m: __mmask16) -> u32 {
+        m as u32
+    }
+    #[inline(always)]
+    unsafe fn from_bits(b: u32) -> __mmask16 {
+        b as __mmask16
+    }
+    #[inline(always)]
+    unsafe fn and(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a & b
+    }
+    #[inline(always)]
+    unsafe fn or(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a | b
+    }
+    #[inline(always)]
+    unsafe fn but(a: __mmask16, b: __mmask16) -> __mmask16 {
+        a & !b
+    }
+}

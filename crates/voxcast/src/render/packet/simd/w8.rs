@@ -1,0 +1,251 @@
+//! [`W8`]: eight lanes in AVX2 registers, lane masks as float vectors
+//! (all ones or all zeros per lane).
+
+use super::{Simd, W8};
+use std::arch::x86_64::*;
+
+/// Eight floats.
+#[derive(Clone, Copy)]
+pub(in crate::render::packet) struct F8(pub __m256);
+
+/// Eight 32-bit integers.
+#[derive(Clone, Copy)]
+pub(in crate::render::packet) struct I8(pub __m256i);
+
+// SAFETY (every `unsafe` block of this file): these values exist only
+// inside functions compiled for AVX2 (see the parent module).
+macro_rules! op {
+    ($t:ident, $tr:ident, $f:ident, $i:ident) => {
+        impl std::ops::$tr for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn $f(self, o: $t) -> $t {
+                unsafe { $t($i(self.0, o.0)) }
+            }
+        }
+    };
+}
+op!(F8, Add, add, _mm256_add_ps);
+op!(F8, Sub, sub, _mm256_sub_ps);
+op!(F8, Mul, mul, _mm256_mul_ps);
+op!(F8, Div, div, _mm256_div_ps);
+op!(I8, Add, add, _mm256_add_epi32);
+op!(I8, Sub, sub, _mm256_sub_epi32);
+
+impl Simd for W8 {
+    const N: usize = 8;
+    type F = F8;
+    type I = I8;
+    type M = __m256;
+    type Af = [f32; 8];
+    type Ai = [i32; 8];
+
+    #[inline(always)]
+    unsafe fn splat(x: f32) -> F8 {
+        F8(_mm256_set1_ps(x))
+    }
+    #[inline(always)]
+    unsafe fn load(a: [f32; 8]) -> F8 {
+        F8(_mm256_loadu_ps(a.as_ptr()))
+    }
+    #[inline(always)]
+    unsafe fn store(v: F8) -> [f32; 8] {
+        let mut a = [0f32; 8];
+        _mm256_storeu_ps(a.as_mut_ptr(), v.0);
+        a
+    }
+    #[inline(always)]
+    unsafe fn min(a: F8, b: F8) -> F8 {
+        F8(_mm256_min_ps(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn max(a: F8, b: F8) -> F8 {
+        F8(_mm256_max_ps(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn floor(a: F8) -> F8 {
+        F8(_mm256_floor_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn ceil(a: F8) -> F8 {
+        F8(_mm256_ceil_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn sqrt(a: F8) -> F8 {
+        F8(_mm256_sqrt_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn abs(a: F8) -> F8 {
+        F8(_mm256_and_ps(
+            a.0,
+            _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX)),
+        ))
+    }
+    #[inline(always)]
+    unsafe fn to_i(a: F8) -> I8 {
+        I8(_mm256_cvttps_epi32(a.0))
+    }
+    #[inline(always)]
+    unsafe fn lt(a: F8, b: F8) -> __m256 {
+        _mm256_cmp_ps::<_CMP_LT_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn gt(a: F8, b: F8) -> __m256 {
+        _mm256_cmp_ps::<_CMP_GT_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn ge(a: F8, b: F8) -> __m256 {
+        _mm256_cmp_ps::<_CMP_GE_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn eq(a: F8, b: F8) -> __m256 {
+        _mm256_cmp_ps::<_CMP_EQ_OQ>(a.0, b.0)
+    }
+    #[inline(always)]
+    unsafe fn blend(m: __m256, f: F8, t: F8) -> F8 {
+        F8(_mm256_blendv_ps(f.0, t.0, m))
+    }
+    #[inline(always)]
+    unsafe fn keep(m: __m256, v: F8) -> F8 {
+        F8(_mm256_and_ps(v.0, m))
+    }
+    #[inline(always)]
+    unsafe fn zero(m: __m256, v: F8) -> F8 {
+        F8(_mm256_andnot_ps(m, v.0))
+    }
+
+    #[inline(always)]
+    unsafe fn splat_i(x: i32) -> I8 {
+        I8(_mm256_set1_epi32(x))
+    }
+    #[inline(always)]
+    unsafe fn load_i(a: [i32; 8]) -> I8 {
+        I8(_mm256_loadu_si256(a.as_ptr() as *const __m256i))
+    }
+    #[inline(always)]
+    unsafe fn store_i(v: I8) -> [i32; 8] {
+        let mut a = [0i32; 8];
+        _mm256_storeu_si256(a.as_mut_ptr() as *mut __m256i, v.0);
+        a
+    }
+    #[inline(always)]
+    unsafe fn to_f(a: I8) -> F8 {
+        F8(_mm256_cvtepi32_ps(a.0))
+    }
+    #[inline(always)]
+    unsafe fn mullo(a: I8, b: I8) -> I8 {
+        I8(_mm256_mullo_epi32(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn min_i(a: I8, b: I8) -> I8 {
+        I8(_mm256_min_epi32(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn max_i(a: I8, b: I8) -> I8 {
+        I8(_mm256_max_epi32(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn and_i(a: I8, b: I8) -> I8 {
+        I8(_mm256_and_si256(a.0, b.0))
+    }
+    #[inline(always)]
+    unsafe fn srl(a: I8, k: i32) -> I8 {
+        I8(_mm256_srl_epi32(a.0, _mm_cvtsi32_si128(k)))
+    }
+    #[inline(always)]
+    unsafe fn sll(a: I8, k: i32) -> I8 {
+        I8(_mm256_sll_epi32(a.0, _mm_cvtsi32_si128(k)))
+    }
+    #[inline(always)]
+    unsafe fn sra(a: I8, k: i32) -> I8 {
+        I8(_mm256_sra_epi32(a.0, _mm_cvtsi32_si128(k)))
+    }
+    #[inline(always)]
+    unsafe fn srlv(a: I8, k: I8) -> I8 {
+        I8(_mm256_srlv_epi32(a.0, k.0))
+    }
+    #[inline(always)]
+    unsafe fn blend_i(m: __m256, f: I8, t: I8) -> I8 {
+        I8(_mm256_castps_si256(_mm256_blendv_ps(
+            _mm256_castsi256_ps(f.0),
+            _mm256_castsi256_ps(t.0),
+            m,
+        )))
+    }
+    #[inline(always)]
+    unsafe fn keep_i(m: __m256, v: I8) -> I8 {
+        I8(_mm256_and_si256(v.0, _mm256_castps_si256(m)))
+    }
+    #[inline(always)]
+    unsafe fn count(a: I8, m: __m256) -> I8 {
+        // A mask lane is −1.
+        I8(_mm256_sub_epi32(a.0, _mm256_castps_si256(m)))
+    }
+    #[inline(always)]
+    unsafe fn positive(a: I8) -> __m256 {
+        _mm256_castsi256_ps(_mm256_cmpgt_epi32(a.0, _mm256_setzero_si256()))
+    }
+    #[inline(always)]
+    unsafe fn gather<const SCALE: i32>(p: *const i32, idx: I8) -> I8 {
+        I8(_mm256_i32gather_epi32::<SCALE>(p, idx.0))
+    }
+    #[inline(always)]
+    unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: I8) -> F8 {
+        F8(_mm256_i32gather_ps::<SCALE>(p, idx.0))
+    }
+    #[inline(always)]
+    unsafe fn rows(table: *const f32, i4: I8) -> [F8; 4] {
+        // (No closure for the loads: a closure does not inherit the
+        // caller's AVX2, so its intrinsics would not inline.)
+        let ix = Self::store_i(i4);
+        let r: [__m128; 8] = [
+            _mm_loadu_ps(table.add(ix[0] as usize)),
+            _mm_loadu_ps(table.add(ix[1] as usize)),
+            _mm_loadu_ps(table.add(ix[2] as usize)),
+            _mm_loadu_ps(table.add(ix[3] as usize)),
+            _mm_loadu_ps(table.add(ix[4] as usize)),
+            _mm_loadu_ps(table.add(ix[5] as usize)),
+            _mm_loadu_ps(table.add(ix[6] as usize)),
+            _mm_loadu_ps(table.add(ix[7] as usize)),
+        ];
+        let a0 = _mm256_set_m128(r[4], r[0]);
+        let a1 = _mm256_set_m128(r[5], r[1]);
+        let a2 = _mm256_set_m128(r[6], r[2]);
+        let a3 = _mm256_set_m128(r[7], r[3]);
+        let t0 = _mm256_unpacklo_ps(a0, a1);
+        let t1 = _mm256_unpacklo_ps(a2, a3);
+        let t2 = _mm256_unpackhi_ps(a0, a1);
+        let t3 = _mm256_unpackhi_ps(a2, a3);
+        [
+            F8(_mm256_shuffle_ps::<0x44>(t0, t1)),
+            F8(_mm256_shuffle_ps::<0xEE>(t0, t1)),
+            F8(_mm256_shuffle_ps::<0x44>(t2, t3)),
+            F8(_mm256_shuffle_ps::<0xEE>(t2, t3)),
+        ]
+    }
+
+    #[inline(always)]
+    unsafe fn bits(m: __m256) -> u32 {
+        _mm256_movemask_ps(m) as u32
+    }
+    #[inline(always)]
+    unsafe fn from_bits(b: u32) -> __m256 {
+        let lane_bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        _mm256_castsi256_ps(_mm256_cmpeq_epi32(
+            _mm256_and_si256(_mm256_set1_epi32(b as i32), lane_bits),
+            lane_bits,
+        ))
+    }
+    #[inline(always)]
+    unsafe fn and(a: __m256, b: __m256) -> __m256 {
+        _mm256_and_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn or(a: __m256, b: __m256) -> __m256 {
+        _mm256_or_ps(a, b)
+    }
+    #[inline(always)]
+    unsafe fn but(a: __m256, b: __m256) -> __m256 {
+        _mm256_andnot_ps(b, a)
+    }
+}

@@ -1,0 +1,599 @@
+//! The packets' vector code, written once over [`Simd`] and compiled at
+//! two widths (see the parent module): the trilinear gathers, the block
+//! exits of empty-space skipping, shading and the marching loop.
+
+use super::simd::{Simd, W16, W8};
+use super::walk::{walk_imp, walk_runs, ImpState, RunRegs};
+use super::{Lane, Packets, Runs, State, LANES};
+use crate::volume::{Voxel, VoxelKind};
+use glam::Vec4;
+
+/// The values at `idx` and `idx + 1` (element indices) of `data`, as
+/// floats: one 32-bit gather for both where the type allows.
+///
+/// # Safety
+/// The width's instructions; every `idx + 1` < `len` (elements), and
+/// `len` bytes ≥ 4.
+#[inline(always)]
+unsafe fn pair<S: Simd, T: Voxel>(data: *const u8, len_bytes: i32, idx: S::I) -> (S::F, S::F) {
+    match T::KIND {
+        VoxelKind::U8 => {
+            // Read 4 bytes at `idx`, moved back near the end of the
+            // data so the read stays inside; shift the pair down.
+            let addr = S::min_i(idx, S::splat_i(len_bytes - 4));
+            let sh = S::sll(idx - addr, 3);
+            let g = S::gather::<1>(data as *const i32, addr);
+            let m = S::splat_i(0xff);
+            let lo = S::and_i(S::srlv(g, sh), m);
+            let hi = S::and_i(S::srlv(g, sh + S::splat_i(8)), m);
+            (S::to_f(lo), S::to_f(hi))
+        }
+        VoxelKind::U16 => {
+            let g = S::gather::<2>(data as *const i32, idx);
+            let lo = S::and_i(g, S::splat_i(0xffff));
+            let hi = S::srl(g, 16);
+            (S::to_f(lo), S::to_f(hi))
+        }
+        VoxelKind::I16 => {
+            let g = S::gather::<2>(data as *const i32, idx);
+            let lo = S::sra(S::sll(g, 16), 16);
+            let hi = S::sra(g, 16);
+            (S::to_f(lo), S::to_f(hi))
+        }
+        VoxelKind::F32 => {
+            let p = data as *const f32;
+            let lo = S::gather_f::<4>(p, idx);
+            let hi = S::gather_f::<4>(p, idx + S::splat_i(1));
+            (lo, hi)
+        }
+    }
+}
+
+/// `a + (b − a)·t` without fusing, as the scalar path computes it.
+#[inline(always)]
+unsafe fn lerp<S: Simd>(a: S::F, b: S::F, t: S::F) -> S::F {
+    a + (b - a) * t
+}
+
+/// Where the ray `o + d·t` (one axis) leaves the cube of blocks within
+/// `r − 1` of block `b` (blocks of edge `bs`): its far face, `b + r` going
+/// up, `b − r + 1` going down (∞ where the ray runs parallel to the axis).
+#[inline(always)]
+unsafe fn exit<S: Simd>(o: S::F, d: S::F, b: S::I, r: S::F, bs: S::F) -> S::F {
+    let zero = S::splat(0.0);
+    let up = S::gt(d, zero);
+    let face = (S::to_f(b) + S::blend(up, S::splat(1.0) - r, r)) * bs;
+    let te = (face - o) / d;
+    S::blend(S::eq(d, zero), te, S::splat(f32::INFINITY))
+}
+
+/// The block of coordinate `c` (≥ 0) on one axis for a ray of
+/// direction `d`: `⌊c/B⌋`, or `⌈c/B⌉ − 1` going down (so a sample on a
+/// face belongs to the block the ray is leaving, as in `BlockWalker`),
+/// clamped to `0..=top`.
+#[inline(always)]
+unsafe fn block<S: Simd>(c: S::F, d: S::F, inv_bs: S::F, top: S::I) -> S::I {
+    let q = c * inv_bs;
+    let down = S::lt(d, S::splat(0.0));
+    let b = S::blend(down, S::floor(q), S::ceil(q) - S::splat(1.0));
+    S::min_i(S::max_i(S::to_i(b), S::splat_i(0)), top)
+}
+
+/// The grid as the lanes read it (see `Grid::sample`).
+struct Vol<S: Simd> {
+    data: *const u8,
+    /// u8 grids: the z-paired copy (`super::z_pairs`).
+    zp: *const u8,
+    len_bytes: i32,
+    max: [S::F; 3],
+    last: [S::I; 3],
+    sy: S::I,
+    sz: S::I,
+    dimx: S::I,
+    dimy: S::I,
+    scale: S::F,
+    offset: S::F,
+}
+
+impl<S: Simd> Vol<S> {
+    /// Positions clamped into the grid as `Grid::sample` clamps them
+    /// (max first: a NaN becomes 0).
+    #[inline(always)]
+    unsafe fn clamp(&self, p: [S::F; 3]) -> [S::F; 3] {
+        let z = S::splat(0.0);
+        [
+            S::min(S::max(p[0], z), self.max[0]),
+            S::min(S::max(p[1], z), self.max[1]),
+            S::min(S::max(p[2], z), self.max[2]),
+        ]
+    }
+
+    /// The normalised trilinear value at `p` (voxel coordinates),
+    /// lane by lane `Grid::sample`.
+    #[inline(always)]
+    unsafe fn sample<T: Voxel>(&self, p: [S::F; 3]) -> S::F {
+        let [px, py, pz] = self.clamp(p);
+        let ix = S::min_i(S::to_i(px), self.last[0]);
+        let iy = S::min_i(S::to_i(py), self.last[1]);
+        let iz = S::min_i(S::to_i(pz), self.last[2]);
+        let fx = px - S::to_f(ix);
+        let fy = py - S::to_f(iy);
+        let fz = pz - S::to_f(iz);
+        let base = ix + S::mullo(self.dimx, iy + S::mullo(self.dimy, iz));
+        let (c000, c100, c010, c110, c001, c101, c011, c111);
+        if T::KIND == VoxelKind::U8 {
+            // Two gathers: rows y and y + 1 of the z-paired copy.
+            let m = S::splat_i(0xff);
+            let g0 = S::gather::<2>(self.zp as *const i32, base);
+            let g1 = S::gather::<2>(self.zp as *const i32, base + self.sy);
+            c000 = S::to_f(S::and_i(g0, m));
+            c001 = S::to_f(S::and_i(S::srl(g0, 8), m));
+            c100 = S::to_f(S::and_i(S::srl(g0, 16), m));
+            c101 = S::to_f(S::srl(g0, 24));
+            c010 = S::to_f(S::and_i(g1, m));
+            c011 = S::to_f(S::and_i(S::srl(g1, 8), m));
+            c110 = S::to_f(S::and_i(S::srl(g1, 16), m));
+            c111 = S::to_f(S::srl(g1, 24));
+        } else {
+            let (d, n) = (self.data, self.len_bytes);
+            (c000, c100) = pair::<S, T>(d, n, base);
+            (c010, c110) = pair::<S, T>(d, n, base + self.sy);
+            (c001, c101) = pair::<S, T>(d, n, base + self.sz);
+            (c011, c111) = pair::<S, T>(d, n, base + self.sy + self.sz);
+        }
+        let c00 = lerp::<S>(c000, c100, fx);
+        let c10 = lerp::<S>(c010, c110, fx);
+        let c01 = lerp::<S>(c001, c101, fx);
+        let c11 = lerp::<S>(c011, c111, fx);
+        let c0 = lerp::<S>(c00, c10, fy);
+        let c1 = lerp::<S>(c01, c11, fy);
+        lerp::<S>(c0, c1, fz) * self.scale + self.offset
+    }
+
+    /// Central-difference gradient at `p`, lane by lane `Grid::gradient`.
+    #[inline(always)]
+    unsafe fn gradient<T: Voxel>(&self, p: [S::F; 3]) -> [S::F; 3] {
+        let one = S::splat(1.0);
+        let half = S::splat(0.5);
+        let [x, y, z] = p;
+        let gx = self.sample::<T>([x + one, y, z]) - self.sample::<T>([x - one, y, z]);
+        let gy = self.sample::<T>([x, y + one, z]) - self.sample::<T>([x, y - one, z]);
+        let gz = self.sample::<T>([x, y, z + one]) - self.sample::<T>([x, y, z - one]);
+        [gx * half, gy * half, gz * half]
+    }
+}
+
+/// `x^n` by repeated squaring (`n` ≤ 64).
+#[inline(always)]
+unsafe fn powi<S: Simd>(x: S::F, n: u32) -> S::F {
+    let mut r = S::splat(1.0);
+    let mut b = x;
+    let mut n = n;
+    while n > 0 {
+        if n & 1 == 1 {
+            r = r * b;
+        }
+        n >>= 1;
+        if n > 0 {
+            b = b * b;
+        }
+    }
+    r
+}
+
+/// One channel of `BlinnPhong::shade` times the opacity: `min(c·k +
+/// spec, 1)·α`, or `c·α` where the gradient is `flat`.
+#[inline(always)]
+unsafe fn phong<S: Simd>(c: S::F, k: S::F, spec: S::F, flat: S::M, al: S::F) -> S::F {
+    let s = S::min(c * k + spec, S::splat(1.0));
+    S::blend(flat, s, c) * al
+}
+
+#[inline(always)]
+unsafe fn dot<S: Simd>(a: [S::F; 3], b: [S::F; 3]) -> S::F {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
+/// colour and opacity to `st.acc`, its samples, shaded samples and
+/// interpolations to `st.count`, and leaves `st.alive` false for lanes
+/// that terminated early. `SKIP`: empty-space skipping (`pk.empty`);
+/// `SHADE`: Blinn–Phong (`pk.shading`); `IMP`: `importance`'s walks
+/// (`st.imp`); `R::ON`: a step-per-block march's runs (`st.runs`), with
+/// S0's grouped reuse where `GROUPED`. The sixteen lanes run as two
+/// packets of eight, one after the other.
+///
+/// # Safety
+/// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a u8
+/// grid, `pk.z_pairs` is its z-paired copy.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn march_avx2<
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
+    lanes: &[Option<Lane>; LANES],
+    st: &mut State<'_>,
+) {
+    for h in [0..LANES / 2, LANES / 2..LANES] {
+        if lanes[h.clone()].iter().any(Option::is_some) {
+            march::<W8, T, R, SKIP, SHADE, IMP, GROUPED>(pk, &lanes[h.clone()], &mut st.part(h));
+        }
+    }
+}
+
+/// [`march_avx2`] in sixteen lanes of AVX-512 registers, lane masks in
+/// mask registers.
+///
+/// # Safety
+/// As [`march_avx2`], and AVX-512 F present.
+#[target_feature(enable = "avx2,fma,avx512f")]
+pub(super) unsafe fn march_avx512<
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
+    lanes: &[Option<Lane>; LANES],
+    st: &mut State<'_>,
+) {
+    march::<W16, T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
+}
+
+/// The loop of both widths, inlined into each; `lanes` and `st` hold
+/// `S::N` lanes.
+///
+/// # Safety
+/// As [`march_avx2`], with the width's instructions.
+#[inline(always)]
+unsafe fn march<
+    S: Simd,
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
+    lanes: &[Option<Lane>],
+    st: &mut State<'_>,
+) {
+    debug_assert!(lanes.len() == S::N && st.acc.len() == S::N);
+    let f = pk.f;
+    let (data, step, last, max) = f.grid.layout();
+    let (scale, offset) = f.grid.scale_offset();
+    let dims = f.grid.dims();
+    let vol = Vol::<S> {
+        data: data.as_ptr() as *const u8,
+        zp: pk.z_pairs.as_ptr() as *const u8,
+        len_bytes: std::mem::size_of_val(data) as i32,
+        max: [S::splat(max.x), S::splat(max.y), S::splat(max.z)],
+        last: [
+            S::splat_i(last[0] as i32),
+            S::splat_i(last[1] as i32),
+            S::splat_i(last[2] as i32),
+        ],
+        sy: S::splat_i(step[1] as i32),
+        sz: S::splat_i(step[2] as i32),
+        dimx: S::splat_i(dims[0] as i32),
+        dimy: S::splat_i(dims[1] as i32),
+        scale: S::splat(scale),
+        offset: S::splat(offset),
+    };
+    let mut a = [S::Af::default(); 12];
+    let (mut k, mut kend) = (S::Af::default(), S::Af::default());
+    let mut live_bits = 0u32;
+    for (i, l) in lanes.iter().enumerate() {
+        if let Some(l) = l {
+            // `group_size`'s thresholds of the lane's exit.
+            let t_out = match &st.runs[i] {
+                Some(w) if R::ON => w.seg.t_out,
+                _ => 0.0,
+            };
+            let v = [
+                l.o.x,
+                l.o.y,
+                l.o.z,
+                l.d.x,
+                l.d.y,
+                l.d.z,
+                l.t0,
+                l.view.x,
+                l.view.y,
+                l.view.z,
+                t_out / 3.0,
+                t_out * (2.0 / 3.0),
+            ];
+            for (c, x) in v.into_iter().enumerate() {
+                a[c][i] = x;
+            }
+            k[i] = l.k0 as f32;
+            kend[i] = l.k_end as f32;
+            live_bits |= 1 << i;
+        }
+    }
+    let o = [S::load(a[0]), S::load(a[1]), S::load(a[2])];
+    let d = [S::load(a[3]), S::load(a[4]), S::load(a[5])];
+    let t0 = S::load(a[6]);
+    let view = [S::load(a[7]), S::load(a[8]), S::load(a[9])];
+    let mut kv = S::load(k);
+    let kend = S::load(kend);
+    let zero = S::splat(0.0);
+    let one = S::splat(1.0);
+    let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]));
+    let stv = S::splat(pk.st);
+    let top = S::splat((crate::transfer::LUT_SIZE - 1) as f32);
+    let half = S::splat(0.5);
+    let q = match (IMP, &pk.imp, pk.runs) {
+        (true, Some(ip), _) => ip.tables.as_ptr() as *const f32,
+        (false, _, Some(r)) if R::ON => r.tables().as_ptr() as *const f32,
+        _ => pk.q.as_ptr() as *const f32,
+    };
+    let rgb = f.lut.entries().as_ptr() as *const f32;
+    let (we, wa) = (
+        S::splat(pk.weights.emission),
+        S::splat(pk.weights.absorption),
+    );
+    let stop = S::splat(pk.stop);
+    // Shading constants.
+    let bp = pk.shading.unwrap_or_default();
+    let inv_sp = [
+        S::splat(f.inv_spacing.x),
+        S::splat(f.inv_spacing.y),
+        S::splat(f.inv_spacing.z),
+    ];
+    let min_g2 = S::splat(bp.min_gradient * bp.min_gradient);
+    let (amb, dif, spe) = (
+        S::splat(bp.ambient),
+        S::splat(bp.diffuse),
+        S::splat(bp.specular),
+    );
+    let shin = bp.shininess as u32;
+    // Blocks, for skipping.
+    let inv_bs = S::splat(1.0 / f.block_size as f32);
+    let bsv = S::splat(f.block_size as f32);
+    let [cx, cy, cz] = [0, 1, 2].map(|a| f.block_counts[a] as i32);
+    let bmax = [S::splat_i(cx - 1), S::splat_i(cy - 1), S::splat_i(cz - 1)];
+    let (ncx, ncy) = (S::splat_i(cx), S::splat_i(cy));
+    let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
+    // Lane state.
+    let mut live = S::from_bits(live_bits);
+    let mut walked = S::from_bits(0);
+    // Each lane goes on from the colour and opacity it holds (zero for a
+    // new ray; a brick's predecessors' for the out-of-core renderer).
+    let mut start = [S::Af::default(); 4];
+    for (i, c) in st.acc.iter().enumerate() {
+        start[0][i] = c.x;
+        start[1][i] = c.y;
+        start[2][i] = c.z;
+        start[3][i] = c.w;
+    }
+    let mut col = [
+        S::load(start[0]),
+        S::load(start[1]),
+        S::load(start[2]),
+        S::load(start[3]),
+    ];
+    let mut cnt = S::splat_i(0);
+    let mut cnt_shaded = S::splat_i(0);
+    let mut cnt_interp = S::splat_i(0);
+    // `importance`: each lane's position, spacing, stretch end and
+    // table offset; every lane starts by fetching its first stretch.
+    let mut is = ImpState::<S>::new();
+    loop {
+        if IMP {
+            // Lanes past their stretch walk on to the next one (scalar).
+            let need = S::and(live, S::ge(is.t, is.tb));
+            let bits = S::bits(need);
+            if bits != 0 {
+                let ended = walk_imp::<S, T, R>(pk, st, bits, &mut is);
+                // A lane whose walk ended is done, and not terminated.
+                live = S::but(live, ended);
+                walked = S::or(walked, ended);
+            }
+        }
+        if R::ON {
+            // Lanes past their run composite its last sample and walk on
+            // to the next run (scalar).
+            let need = S::and(live, S::ge(kv, rr.kend));
+            let bits = S::bits(need);
+            if bits != 0 {
+                let (ended, dead) = walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col);
+                live = S::but(live, S::or(ended, dead));
+                walked = S::or(walked, ended);
+            }
+        }
+        let act = if IMP {
+            live
+        } else {
+            S::and(live, S::lt(kv, if R::ON { rr.kend } else { kend }))
+        };
+        if S::bits(act) == 0 {
+            break;
+        }
+        let t = if IMP {
+            let t = is.t;
+            is.t = S::blend(act, is.t, is.t + is.s);
+            t
+        } else if R::ON {
+            t0 + kv * rr.stv
+        } else {
+            t0 + kv * stv
+        };
+        let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+        let mut samp = act;
+        let mut next = kv + one;
+        if SKIP {
+            let c = vol.clamp(p);
+            // The block walk's rule: on a face, a ray going down
+            // belongs to the block below.
+            let b3 = [
+                block::<S>(c[0], d[0], inv_bs, bmax[0]),
+                block::<S>(c[1], d[1], inv_bs, bmax[1]),
+                block::<S>(c[2], d[2], inv_bs, bmax[2]),
+            ];
+            let b = b3[0] + S::mullo(ncx, b3[1] + S::mullo(ncy, b3[2]));
+            let e = S::gather::<4>(empty, b);
+            let skip = S::and(act, S::positive(e));
+            if S::bits(skip) != 0 {
+                // The lane's exit from the empty cube around its block:
+                // the nearest far face.
+                let r = S::to_f(e);
+                let te = S::min(
+                    S::min(
+                        exit::<S>(o[0], d[0], b3[0], r, bsv),
+                        exit::<S>(o[1], d[1], b3[1], r, bsv),
+                    ),
+                    exit::<S>(o[2], d[2], b3[2], r, bsv),
+                );
+                // First sample past the exit (a hair early: a sample
+                // still inside is tested again, never one skipped).
+                let kn = S::ceil((te - t0) / stv - S::splat(1e-3));
+                next = S::blend(skip, next, S::max(next, kn));
+                samp = S::but(act, skip);
+            }
+        }
+        // A step-per-block march: the run's last sample waits for its
+        // stretch; grouped reuse evaluates only where a group starts.
+        let (is_last, eval) = if R::ON {
+            let is_last = S::and(act, S::eq(kv, rr.kend - one));
+            let eval = if GROUPED {
+                // `group_size(t, t_out).min(cap)` divides k.
+                let g = one + S::keep(S::gt(t, rr.th1), one) + S::keep(S::gt(t, rr.th2), one);
+                let g = S::min(g, rr.capv);
+                let div = S::eq(S::floor(kv / g) * g, kv);
+                let eval = S::and(act, S::or(rr.fresh, div));
+                rr.fresh = S::but(rr.fresh, act);
+                eval
+            } else {
+                act
+            };
+            (is_last, eval)
+        } else {
+            (S::from_bits(0), samp)
+        };
+        if !IMP {
+            // Every lane steps on, the ones that ended or terminated too
+            // (they are masked out): so the next position does not wait
+            // for this sample's compositing, and the next gathers can
+            // start before this one's have returned.
+            kv = next;
+        }
+        if !R::ON && S::bits(samp) == 0 {
+            continue;
+        }
+        cnt = S::count(cnt, samp);
+        let (mut e, mut al, mut valid, mut idx) = ([zero; 3], zero, S::from_bits(0), S::splat_i(0));
+        if !GROUPED || S::bits(eval) != 0 {
+            cnt_interp = S::count(cnt_interp, eval);
+            let v = vol.sample::<T>(p);
+            // `Lut::index`: below 0 (or NaN) nothing; the lane's entry 0
+            // is read and masked out.
+            valid = S::and(eval, S::ge(v, zero));
+            let x = S::min(v, one) * top + half;
+            idx = S::keep_i(valid, S::to_i(x));
+            let i4 = S::sll(idx, 2);
+            // The lanes' table rows: loaded whole and transposed (cheaper
+            // than four gathers); `importance` and the step-per-block
+            // marches read their lane's level.
+            let [qr, qg, qb, qa] = if IMP {
+                S::rows(q, i4 + is.off)
+            } else if R::ON {
+                S::rows(q, i4 + rr.offv)
+            } else {
+                S::rows(q, i4)
+            };
+            al = qa;
+            if SHADE {
+                // Transparent samples are culled before shading.
+                valid = S::and(valid, S::gt(al, zero));
+                if S::bits(valid) == 0 {
+                    if !R::ON {
+                        continue;
+                    }
+                } else {
+                    let [r, g, b, _] = S::rows(rgb, i4);
+                    let gr = vol.gradient::<T>(p);
+                    let flat = S::lt(dot::<S>(gr, gr), min_g2);
+                    let gw = [gr[0] * inv_sp[0], gr[1] * inv_sp[1], gr[2] * inv_sp[2]];
+                    let inv_len = one / S::sqrt(dot::<S>(gw, gw));
+                    let n = [gw[0] * inv_len, gw[1] * inv_len, gw[2] * inv_len];
+                    let ndl = S::abs(dot::<S>(n, view));
+                    let spec = spe * powi::<S>(ndl, shin);
+                    let k = amb + dif * ndl;
+                    e = [
+                        S::keep(valid, phong::<S>(r, k, spec, flat, al)),
+                        S::keep(valid, phong::<S>(g, k, spec, flat, al)),
+                        S::keep(valid, phong::<S>(b, k, spec, flat, al)),
+                    ];
+                    cnt_shaded = S::count(cnt_shaded, valid);
+                }
+            } else {
+                e = [S::keep(valid, qr), S::keep(valid, qg), S::keep(valid, qb)];
+            }
+            al = S::keep(valid, al);
+            if GROUPED {
+                // The lanes that evaluated keep their sample for reuse.
+                rr.keep(eval, [e[0], e[1], e[2], al], idx, valid);
+            }
+        }
+        if GROUPED {
+            // Every sampling lane composites its group's value (lanes
+            // that ended or terminated keep theirs, unused).
+            let l = rr.last;
+            e = [S::keep(act, l[0]), S::keep(act, l[1]), S::keep(act, l[2])];
+            al = S::keep(act, l[3]);
+            idx = rr.last_idx;
+            valid = S::and(rr.last_ok, act);
+        }
+        if R::ON {
+            // The run's last sample waits for its stretch (the walk
+            // composites it); the others composite with the run's step.
+            rr.hold(is_last, [e[0], e[1], e[2], al, t], idx, valid);
+            valid = S::but(valid, is_last);
+            e = [
+                S::zero(is_last, e[0]),
+                S::zero(is_last, e[1]),
+                S::zero(is_last, e[2]),
+            ];
+            al = S::zero(is_last, al);
+        }
+        // Front to back (`over_front` with the optical model's weights).
+        let tr = one - col[3];
+        col[0] = col[0] + e[0] * we * tr;
+        col[1] = col[1] + e[1] * we * tr;
+        col[2] = col[2] + e[2] * we * tr;
+        col[3] = col[3] + al * wa * tr;
+        let done = S::and(valid, S::ge(col[3], stop));
+        live = S::but(live, done);
+    }
+    if !R::ON {
+        cnt_interp = cnt;
+    }
+    let col = [
+        S::store(col[0]),
+        S::store(col[1]),
+        S::store(col[2]),
+        S::store(col[3]),
+    ];
+    let (c, cs, ci) = (
+        S::store_i(cnt),
+        S::store_i(cnt_shaded),
+        S::store_i(cnt_interp),
+    );
+    // Lanes whose walk ended count as alive (not terminated early).
+    let l = S::bits(S::or(live, walked));
+    for i in 0..S::N {
+        st.acc[i] = Vec4::new(col[0][i], col[1][i], col[2][i], col[3][i]);
+        st.count[i] = [c[i] as u32, cs[i] as u32, ci[i] as u32];
+        st.alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
+    }
+}

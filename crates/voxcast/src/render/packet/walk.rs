@@ -1,0 +1,240 @@
+//! Where the vector loop hands lanes to their scalar walks: a
+//! step-per-block march's runs ([`walk_runs`]) and `importance`'s
+//! stretches ([`walk_imp`]), with the lane state each keeps in registers.
+
+use super::simd::Simd;
+use super::{Packets, Runs, State};
+use crate::render::composite::Front;
+use crate::render::march::{Next, Pending};
+use crate::transfer::LUT_SIZE;
+use crate::volume::Voxel;
+use glam::Vec4;
+
+/// A step-per-block march's lane state in the vector loop: each lane's
+/// run (`k` up to `kend`, step, table offset, group cap), its grouped
+/// reuse (`fresh`: the next sample starts a group; the last evaluated
+/// sample), and the pending last sample of its run.
+pub(super) struct RunRegs<S: Simd> {
+    pub stv: S::F,
+    pub kend: S::F,
+    pub offv: S::I,
+    pub capv: S::F,
+    pub fresh: S::M,
+    /// `group_size`'s thresholds: a third and two thirds of the exit.
+    pub th1: S::F,
+    pub th2: S::F,
+    /// The last evaluated sample: colour, opacity, entry, validity.
+    pub last: [S::F; 4],
+    pub last_idx: S::I,
+    pub last_ok: S::M,
+    /// The run's last sample: colour, opacity, position, entry, validity.
+    pend: [S::F; 5],
+    pend_idx: S::I,
+    pend_ok: S::M,
+}
+
+impl<S: Simd> RunRegs<S> {
+    /// Lanes that have no run yet (each fetches its first), with the
+    /// group thresholds `th1`, `th2`.
+    #[inline(always)]
+    pub unsafe fn new(kend: S::F, th1: S::F, th2: S::F) -> Self {
+        let zero = S::splat(0.0);
+        RunRegs {
+            stv: S::splat(1.0),
+            kend,
+            offv: S::splat_i(0),
+            capv: S::splat(3.0),
+            fresh: S::from_bits(0),
+            th1,
+            th2,
+            last: [zero; 4],
+            last_idx: S::splat_i(0),
+            last_ok: S::from_bits(0),
+            pend: [zero; 5],
+            pend_idx: S::splat_i(0),
+            pend_ok: S::from_bits(0),
+        }
+    }
+
+    /// The lanes of `m` keep their evaluated sample `e` (colour,
+    /// opacity), its entry and validity, for their group's reuse.
+    #[inline(always)]
+    pub unsafe fn keep(&mut self, m: S::M, e: [S::F; 4], idx: S::I, ok: S::M) {
+        self.last[0] = S::blend(m, self.last[0], e[0]);
+        self.last[1] = S::blend(m, self.last[1], e[1]);
+        self.last[2] = S::blend(m, self.last[2], e[2]);
+        self.last[3] = S::blend(m, self.last[3], e[3]);
+        self.last_idx = S::blend_i(m, self.last_idx, idx);
+        self.last_ok = S::or(S::and(m, ok), S::but(self.last_ok, m));
+    }
+
+    /// The lanes of `m` hold their run's last sample `e` (colour,
+    /// opacity, position), entry and validity until their walk takes it.
+    #[inline(always)]
+    pub unsafe fn hold(&mut self, m: S::M, e: [S::F; 5], idx: S::I, ok: S::M) {
+        self.pend[0] = S::blend(m, self.pend[0], e[0]);
+        self.pend[1] = S::blend(m, self.pend[1], e[1]);
+        self.pend[2] = S::blend(m, self.pend[2], e[2]);
+        self.pend[3] = S::blend(m, self.pend[3], e[3]);
+        self.pend[4] = S::blend(m, self.pend[4], e[4]);
+        self.pend_idx = S::blend_i(m, self.pend_idx, idx);
+        self.pend_ok = S::or(S::and(m, ok), S::but(self.pend_ok, m));
+    }
+}
+
+/// The step-per-block lanes of `bits`, past their run: each hands its
+/// run's last sample to its walk, which composites it into the lane's
+/// colour `col` and finds the next run (scalar). Returns the masks of the
+/// lanes whose walk ended and of those that terminated.
+///
+/// # Safety
+/// The width's instructions; `st.runs` holds a walk for every lane of
+/// `bits`.
+#[inline(always)]
+pub(super) unsafe fn walk_runs<S: Simd, T: Voxel, R: Runs<T>>(
+    pk: &Packets<'_, T, R>,
+    st: &mut State<'_>,
+    bits: u32,
+    rr: &mut RunRegs<S>,
+    kv: &mut S::F,
+    col: &mut [S::F; 4],
+) -> (S::M, S::M) {
+    let runs = pk.runs.unwrap_unchecked();
+    let mut c4 = [
+        S::store(col[0]),
+        S::store(col[1]),
+        S::store(col[2]),
+        S::store(col[3]),
+    ];
+    let pend = [
+        S::store(rr.pend[0]),
+        S::store(rr.pend[1]),
+        S::store(rr.pend[2]),
+        S::store(rr.pend[3]),
+        S::store(rr.pend[4]),
+    ];
+    let pend_idx = S::store_i(rr.pend_idx);
+    let pend_ok = S::bits(rr.pend_ok);
+    let (mut k, mut kend, mut s, mut cap) = (
+        S::store(*kv),
+        S::store(rr.kend),
+        S::store(rr.stv),
+        S::store(rr.capv),
+    );
+    let mut fresh = S::bits(rr.fresh);
+    let mut off = S::store_i(rr.offv);
+    let (mut ended, mut dead) = (0u32, 0u32);
+    for (i, w) in st.runs.iter_mut().enumerate() {
+        if (bits >> i) & 1 == 0 {
+            continue;
+        }
+        let w = w.as_mut().unwrap_unchecked();
+        // The run's last sample (none before the first run).
+        if (pend_ok >> i) & 1 == 1 {
+            w.pending = Some(Pending {
+                t: pend[4][i],
+                entry: pend_idx[i] as usize,
+                e: glam::Vec3::new(pend[0][i], pend[1][i], pend[2][i]),
+                a: pend[3][i],
+            });
+        }
+        let acc = Vec4::new(c4[0][i], c4[1][i], c4[2][i], c4[3][i]);
+        let mut c = Front::resume(acc, pk.weights, pk.stop);
+        match runs.next(pk.f, w, &mut c, st.walk) {
+            Next::Run(r) => {
+                k[i] = r.n0 as f32;
+                kend[i] = r.n1 as f32;
+                s[i] = runs.step(r.li);
+                off[i] = (r.li * LUT_SIZE * 4) as i32;
+                cap[i] = r.cap.min(3) as f32;
+                fresh |= 1 << i;
+            }
+            Next::Ended => ended |= 1 << i,
+            Next::Terminated => dead |= 1 << i,
+        }
+        let acc = c.acc();
+        c4[0][i] = acc.x;
+        c4[1][i] = acc.y;
+        c4[2][i] = acc.z;
+        c4[3][i] = acc.w;
+    }
+    *kv = S::load(k);
+    rr.kend = S::load(kend);
+    rr.stv = S::load(s);
+    rr.capv = S::load(cap);
+    rr.fresh = S::from_bits(fresh);
+    rr.offv = S::load_i(off);
+    // Each pending sample is now with its walk.
+    rr.pend_ok = S::but(rr.pend_ok, S::from_bits(bits));
+    for (r, v) in col.iter_mut().zip(c4) {
+        *r = S::load(v);
+    }
+    (S::from_bits(ended), S::from_bits(dead))
+}
+
+/// `importance`'s lanes in the vector loop: where each samples next,
+/// its spacing, the end of its stretch and the row offset of its level's
+/// table (in floats).
+pub(super) struct ImpState<S: Simd> {
+    pub t: S::F,
+    pub s: S::F,
+    pub tb: S::F,
+    pub off: S::I,
+}
+
+impl<S: Simd> ImpState<S> {
+    /// Every lane past its stretch: each fetches its first.
+    #[inline(always)]
+    pub unsafe fn new() -> Self {
+        ImpState {
+            t: S::splat(0.0),
+            s: S::splat(1.0),
+            tb: S::splat(f32::NEG_INFINITY),
+            off: S::splat_i(0),
+        }
+    }
+}
+
+/// The `importance` lanes of `bits`, past their stretch: each walks on
+/// to its next one (scalar). Returns the mask of the lanes whose walk
+/// ended.
+///
+/// # Safety
+/// The width's instructions; `pk.imp` is set and `st.imp` holds a walk
+/// for every lane of `bits`.
+#[inline(always)]
+pub(super) unsafe fn walk_imp<S: Simd, T: Voxel, R: Runs<T>>(
+    pk: &Packets<'_, T, R>,
+    st: &mut State<'_>,
+    bits: u32,
+    is: &mut ImpState<S>,
+) -> S::M {
+    let ip = pk.imp.as_ref().unwrap_unchecked();
+    let (mut t, mut s, mut tb, mut off) = (
+        S::store(is.t),
+        S::store(is.s),
+        S::store(is.tb),
+        S::store_i(is.off),
+    );
+    let mut dead = 0u32;
+    for (i, l) in st.imp.iter_mut().enumerate() {
+        if (bits >> i) & 1 == 0 {
+            continue;
+        }
+        let l = l.as_mut().unwrap_unchecked();
+        match ip.next(l, t[i], s[i], tb[i]) {
+            Some((ti, si, tbi, j)) => {
+                t[i] = ti;
+                s[i] = si;
+                tb[i] = tbi;
+                off[i] = (j * LUT_SIZE * 4) as i32;
+            }
+            None => dead |= 1 << i,
+        }
+    }
+    is.t = S::load(t);
+    is.s = S::load(s);
+    is.tb = S::load(tb);
+    is.off = S::load_i(off);
+    S::from_bits(dead)
+}
