@@ -36,15 +36,11 @@ op!(I16, Sub, sub, _mm512_sub_epi32);
 const FLOOR: i32 = 0x09;
 const CEIL: i32 = 0x0A;
 
-/// `[a, b, c, d]` as the four 128-bit blocks of one register.
+/// The lanes `i` of the 32 floats of `a` then `b`. (A function, not a
+/// closure: a closure would not inherit the caller's AVX-512.)
 #[inline(always)]
-unsafe fn quad(a: __m128, b: __m128, c: __m128, d: __m128) -> __m512 {
-    let lo = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(a), b);
-    let hi = _mm256_insertf128_ps::<1>(_mm256_castps128_ps256(c), d);
-    _mm512_castpd_ps(_mm512_insertf64x4::<1>(
-        _mm512_castpd256_pd512(_mm256_castps_pd(lo)),
-        _mm256_castps_pd(hi),
-    ))
+unsafe fn pick(a: __m512i, i: __m512i, b: __m512i) -> __m512 {
+    _mm512_permutex2var_ps(_mm512_castsi512_ps(a), i, _mm512_castsi512_ps(b))
 }
 
 impl Simd for W16 {
@@ -202,44 +198,24 @@ impl Simd for W16 {
     }
     #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I16) -> [F16; 4] {
-        // Register j holds rows j, j + 4, j + 8, j + 12 in its four
-        // 128-bit blocks; the transpose within blocks (as `W8::rows`)
-        // leaves block b with rows 4b … 4b + 3. (No closure: it would
-        // not inherit the caller's AVX-512.)
-        let ix = Self::store_i(i4);
-        let r: [__m128; 16] = [
-            _mm_loadu_ps(table.add(ix[0] as usize)),
-            _mm_loadu_ps(table.add(ix[1] as usize)),
-            _mm_loadu_ps(table.add(ix[2] as usize)),
-            _mm_loadu_ps(table.add(ix[3] as usize)),
-            _mm_loadu_ps(table.add(ix[4] as usize)),
-            _mm_loadu_ps(table.add(ix[5] as usize)),
-            _mm_loadu_ps(table.add(ix[6] as usize)),
-            _mm_loadu_ps(table.add(ix[7] as usize)),
-            _mm_loadu_ps(table.add(ix[8] as usize)),
-            _mm_loadu_ps(table.add(ix[9] as usize)),
-            _mm_loadu_ps(table.add(ix[10] as usize)),
-            _mm_loadu_ps(table.add(ix[11] as usize)),
-            _mm_loadu_ps(table.add(ix[12] as usize)),
-            _mm_loadu_ps(table.add(ix[13] as usize)),
-            _mm_loadu_ps(table.add(ix[14] as usize)),
-            _mm_loadu_ps(table.add(ix[15] as usize)),
-        ];
-        let a = [
-            quad(r[0], r[4], r[8], r[12]),
-            quad(r[1], r[5], r[9], r[13]),
-            quad(r[2], r[6], r[10], r[14]),
-            quad(r[3], r[7], r[11], r[15]),
-        ];
-        let t0 = _mm512_unpacklo_ps(a[0], a[1]);
-        let t1 = _mm512_unpacklo_ps(a[2], a[3]);
-        let t2 = _mm512_unpackhi_ps(a[0], a[1]);
-        let t3 = _mm512_unpackhi_ps(a[2], a[3]);
+        // A row is two 64-bit halves, (r, g) and (b, a): four gathers of
+        // eight 64-bit elements (32 loads, where four 16-wide gathers of
+        // floats are 64 and sixteen row loads need a transpose), then one
+        // two-register permute per channel picks the evens or the odds.
+        let h = _mm512_srli_epi32::<1>(i4.0);
+        let (lo, hi) = (_mm512_castsi512_si256(h), _mm512_extracti64x4_epi64::<1>(h));
+        let base = table as *const i64;
+        let rg_lo = _mm512_i32gather_epi64::<8>(lo, base);
+        let rg_hi = _mm512_i32gather_epi64::<8>(hi, base);
+        let ba_lo = _mm512_i32gather_epi64::<8>(lo, base.add(1));
+        let ba_hi = _mm512_i32gather_epi64::<8>(hi, base.add(1));
+        let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+        let odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
         [
-            F16(_mm512_shuffle_ps::<0x44>(t0, t1)),
-            F16(_mm512_shuffle_ps::<0xEE>(t0, t1)),
-            F16(_mm512_shuffle_ps::<0x44>(t2, t3)),
-            F16(_mm512_shuffle_ps::<0xEE>(t2, t3)),
+            F16(pick(rg_lo, even, rg_hi)),
+            F16(pick(rg_lo, odd, rg_hi)),
+            F16(pick(ba_lo, even, ba_hi)),
+            F16(pick(ba_lo, odd, ba_hi)),
         ]
     }
 

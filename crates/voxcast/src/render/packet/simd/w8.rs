@@ -32,6 +32,21 @@ op!(F8, Div, div, _mm256_div_ps);
 op!(I8, Add, add, _mm256_add_epi32);
 op!(I8, Sub, sub, _mm256_sub_epi32);
 
+/// Floats 0, 2, 4, 6 of `a` then of `b`: shuffled within the 128-bit
+/// halves (a0 a2 b0 b2 | a4 a6 b4 b6), then the 64-bit pairs reordered.
+#[inline(always)]
+unsafe fn evens(a: __m256, b: __m256) -> __m256 {
+    let s = _mm256_shuffle_ps::<0x88>(a, b);
+    _mm256_castpd_ps(_mm256_permute4x64_pd::<0xD8>(_mm256_castps_pd(s)))
+}
+
+/// Floats 1, 3, 5, 7 of `a` then of `b`.
+#[inline(always)]
+unsafe fn odds(a: __m256, b: __m256) -> __m256 {
+    let s = _mm256_shuffle_ps::<0xDD>(a, b);
+    _mm256_castpd_ps(_mm256_permute4x64_pd::<0xD8>(_mm256_castps_pd(s)))
+}
+
 impl Simd for W8 {
     const N: usize = 8;
     type F = F8;
@@ -195,32 +210,21 @@ impl Simd for W8 {
     }
     #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I8) -> [F8; 4] {
-        // (No closure for the loads: a closure does not inherit the
-        // caller's AVX2, so its intrinsics would not inline.)
-        let ix = Self::store_i(i4);
-        let r: [__m128; 8] = [
-            _mm_loadu_ps(table.add(ix[0] as usize)),
-            _mm_loadu_ps(table.add(ix[1] as usize)),
-            _mm_loadu_ps(table.add(ix[2] as usize)),
-            _mm_loadu_ps(table.add(ix[3] as usize)),
-            _mm_loadu_ps(table.add(ix[4] as usize)),
-            _mm_loadu_ps(table.add(ix[5] as usize)),
-            _mm_loadu_ps(table.add(ix[6] as usize)),
-            _mm_loadu_ps(table.add(ix[7] as usize)),
-        ];
-        let a0 = _mm256_set_m128(r[4], r[0]);
-        let a1 = _mm256_set_m128(r[5], r[1]);
-        let a2 = _mm256_set_m128(r[6], r[2]);
-        let a3 = _mm256_set_m128(r[7], r[3]);
-        let t0 = _mm256_unpacklo_ps(a0, a1);
-        let t1 = _mm256_unpacklo_ps(a2, a3);
-        let t2 = _mm256_unpackhi_ps(a0, a1);
-        let t3 = _mm256_unpackhi_ps(a2, a3);
+        // A row is two 64-bit halves, (r, g) and (b, a): four gathers of
+        // four 64-bit elements (16 loads), then per channel a shuffle of
+        // the evens or odds of both and a cross-lane reorder.
+        let h = _mm256_srli_epi32::<1>(i4.0);
+        let (lo, hi) = (_mm256_castsi256_si128(h), _mm256_extracti128_si256::<1>(h));
+        let base = table as *const i64;
+        let rg_lo = _mm256_castsi256_ps(_mm256_i32gather_epi64::<8>(base, lo));
+        let rg_hi = _mm256_castsi256_ps(_mm256_i32gather_epi64::<8>(base, hi));
+        let ba_lo = _mm256_castsi256_ps(_mm256_i32gather_epi64::<8>(base.add(1), lo));
+        let ba_hi = _mm256_castsi256_ps(_mm256_i32gather_epi64::<8>(base.add(1), hi));
         [
-            F8(_mm256_shuffle_ps::<0x44>(t0, t1)),
-            F8(_mm256_shuffle_ps::<0xEE>(t0, t1)),
-            F8(_mm256_shuffle_ps::<0x44>(t2, t3)),
-            F8(_mm256_shuffle_ps::<0xEE>(t2, t3)),
+            F8(evens(rg_lo, rg_hi)),
+            F8(odds(rg_lo, rg_hi)),
+            F8(evens(ba_lo, ba_hi)),
+            F8(odds(ba_lo, ba_hi)),
         ]
     }
 
