@@ -641,6 +641,7 @@ impl Job<'_> {
         // stay closer together than a row's, so their lengths and the
         // voxels they fetch differ less.
         const SIDE: u32 = 4;
+        const _: () = assert!((SIDE * SIDE) as usize == packet::LANES);
         let out = tiles::render_whole_tiles(
             p.width,
             p.height,

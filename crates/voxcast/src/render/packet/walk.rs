@@ -60,26 +60,49 @@ impl<S: Simd> RunRegs<S> {
     /// opacity), its entry and validity, for their group's reuse.
     #[inline(always)]
     pub unsafe fn keep(&mut self, m: S::M, e: [S::F; 4], idx: S::I, ok: S::M) {
-        self.last[0] = S::blend(m, self.last[0], e[0]);
-        self.last[1] = S::blend(m, self.last[1], e[1]);
-        self.last[2] = S::blend(m, self.last[2], e[2]);
-        self.last[3] = S::blend(m, self.last[3], e[3]);
-        self.last_idx = S::blend_i(m, self.last_idx, idx);
-        self.last_ok = S::or(S::and(m, ok), S::but(self.last_ok, m));
+        take::<S, 4>(
+            &mut self.last,
+            &mut self.last_idx,
+            &mut self.last_ok,
+            m,
+            e,
+            idx,
+            ok,
+        );
     }
 
     /// The lanes of `m` hold their run's last sample `e` (colour,
     /// opacity, position), entry and validity until their walk takes it.
     #[inline(always)]
     pub unsafe fn hold(&mut self, m: S::M, e: [S::F; 5], idx: S::I, ok: S::M) {
-        self.pend[0] = S::blend(m, self.pend[0], e[0]);
-        self.pend[1] = S::blend(m, self.pend[1], e[1]);
-        self.pend[2] = S::blend(m, self.pend[2], e[2]);
-        self.pend[3] = S::blend(m, self.pend[3], e[3]);
-        self.pend[4] = S::blend(m, self.pend[4], e[4]);
-        self.pend_idx = S::blend_i(m, self.pend_idx, idx);
-        self.pend_ok = S::or(S::and(m, ok), S::but(self.pend_ok, m));
+        take::<S, 5>(
+            &mut self.pend,
+            &mut self.pend_idx,
+            &mut self.pend_ok,
+            m,
+            e,
+            idx,
+            ok,
+        );
     }
+}
+
+/// In the lanes of `m`, `(e, idx, ok)` replace `(v, v_idx, v_ok)`.
+#[inline(always)]
+unsafe fn take<S: Simd, const N: usize>(
+    v: &mut [S::F; N],
+    v_idx: &mut S::I,
+    v_ok: &mut S::M,
+    m: S::M,
+    e: [S::F; N],
+    idx: S::I,
+    ok: S::M,
+) {
+    for (v, e) in v.iter_mut().zip(e) {
+        *v = S::blend(m, *v, e);
+    }
+    *v_idx = S::blend_i(m, *v_idx, idx);
+    *v_ok = S::or(S::and(m, ok), S::but(*v_ok, m));
 }
 
 /// The step-per-block lanes of `bits`, past their run: each hands its
