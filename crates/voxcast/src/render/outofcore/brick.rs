@@ -263,8 +263,7 @@ impl CellRanges {
         if lo[0] == usize::MAX {
             return None;
         }
-        let d = crate::render::packet::skip_distances(|i| flags[i] != 0, n);
-        *flags = d;
+        crate::render::packet::distances_in_place(flags, n);
         let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
         let h = Vec3::from(hi.map(|c| ((c + 1) * CELL) as f32));
         Some((l, h))

@@ -19,59 +19,57 @@ pub(in crate::render) fn skip_distances(
     empty: impl Fn(usize) -> bool,
     counts: [usize; 3],
 ) -> Vec<i32> {
-    let [nx, ny, nz] = counts;
-    let n = nx * ny * nz;
-    let mut d: Vec<i32> = (0..n).map(|i| if empty(i) { FAR } else { 0 }).collect();
-    if n == 0 {
-        return d;
-    }
-    let at = |x: usize, y: usize, z: usize| x + nx * (y + ny * z);
-    // Forward: the 13 neighbours before a block in raster order.
-    for z in 0..nz {
-        for y in 0..ny {
-            for x in 0..nx {
-                let i = at(x, y, z);
-                if d[i] == 0 {
-                    continue;
-                }
-                let mut m = d[i];
-                for (dx, dy, dz) in BEFORE {
-                    let (qx, qy, qz) = (x as isize + dx, y as isize + dy, z as isize + dz);
-                    if qx < 0 || qy < 0 || qz < 0 || qx >= nx as isize || qy >= ny as isize {
-                        continue;
-                    }
-                    m = m.min(d[at(qx as usize, qy as usize, qz as usize)] + 1);
-                }
-                d[i] = m;
-            }
-        }
-    }
-    // Backward: the 13 after it.
-    for z in (0..nz).rev() {
-        for y in (0..ny).rev() {
-            for x in (0..nx).rev() {
-                let i = at(x, y, z);
-                if d[i] == 0 {
-                    continue;
-                }
-                let mut m = d[i];
-                for (dx, dy, dz) in BEFORE {
-                    let (qx, qy, qz) = (x as isize - dx, y as isize - dy, z as isize - dz);
-                    if qx < 0
-                        || qy < 0
-                        || qx >= nx as isize
-                        || qy >= ny as isize
-                        || qz >= nz as isize
-                    {
-                        continue;
-                    }
-                    m = m.min(d[at(qx as usize, qy as usize, qz as usize)] + 1);
-                }
-                d[i] = m;
-            }
-        }
-    }
+    let n = counts.iter().product::<usize>();
+    let mut d: Vec<i32> = (0..n).map(|i| -(empty(i) as i32)).collect();
+    distances_in_place(&mut d, counts);
     d
+}
+
+/// [`skip_distances`] in place: `d` holds 0 for a block that is not empty
+/// and anything else for an empty one, and gets the distances.
+pub(in crate::render) fn distances_in_place(d: &mut [i32], counts: [usize; 3]) {
+    for v in d.iter_mut().filter(|v| **v != 0) {
+        *v = FAR;
+    }
+    // Forward: the 13 neighbours before a block in raster order; then
+    // backward: the 13 after it.
+    sweep(d, counts, true);
+    sweep(d, counts, false);
+}
+
+/// One raster pass of the chamfer transform: each block takes the
+/// smallest of its distance and its 13 neighbours' (those before it in
+/// the pass's order) plus one.
+fn sweep(d: &mut [i32], [nx, ny, nz]: [usize; 3], forward: bool) {
+    let (sign, n) = (
+        if forward { 1 } else { -1 },
+        [nx, ny, nz].map(|c| c as isize),
+    );
+    let ordered = |i: usize, c: usize| if forward { i } else { c - 1 - i };
+    for z in (0..nz).map(|i| ordered(i, nz)) {
+        for y in (0..ny).map(|i| ordered(i, ny)) {
+            for x in (0..nx).map(|i| ordered(i, nx)) {
+                let i = x + nx * (y + ny * z);
+                if d[i] == 0 {
+                    continue;
+                }
+                let mut m = d[i];
+                for (dx, dy, dz) in BEFORE {
+                    let q = [
+                        x as isize + sign * dx,
+                        y as isize + sign * dy,
+                        z as isize + sign * dz,
+                    ];
+                    if (0..3).any(|a| q[a] < 0 || q[a] >= n[a]) {
+                        continue;
+                    }
+                    let j = q[0] as usize + nx * (q[1] as usize + ny * q[2] as usize);
+                    m = m.min(d[j] + 1);
+                }
+                d[i] = m;
+            }
+        }
+    }
 }
 
 /// The distance given where no block in reach is visible (a grid of

@@ -49,7 +49,7 @@ mod runs;
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
-pub(in crate::render) use distance::skip_distances;
+pub(in crate::render) use distance::{distances_in_place, skip_distances};
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;

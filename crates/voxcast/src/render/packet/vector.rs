@@ -69,12 +69,6 @@ unsafe fn exit<S: Simd>(o: S::F, d: S::F, inv_d: S::F, b: S::I, r: S::F, bs: S::
     S::blend(S::eq(d, zero), te, S::splat(f32::INFINITY))
 }
 
-/// `1/x`.
-#[inline(always)]
-unsafe fn one_over<S: Simd>(x: S::F) -> S::F {
-    S::splat(1.0) / x
-}
-
 /// The block of coordinate `c` (≥ 0) on one axis for a ray of
 /// direction `d`: `⌊c/B⌋`, or `⌈c/B⌉ − 1` going down (so a sample on a
 /// face belongs to the block the ray is leaving, as in `BlockWalker`),
@@ -331,18 +325,14 @@ unsafe fn march<
     let o = [S::load(a[0]), S::load(a[1]), S::load(a[2])];
     let d = [S::load(a[3]), S::load(a[4]), S::load(a[5])];
     let t0 = S::load(a[6]);
-    // For the skips' exits: no division in the loop.
-    let inv_d = [
-        one_over::<S>(d[0]),
-        one_over::<S>(d[1]),
-        one_over::<S>(d[2]),
-    ];
-    let inv_st = S::splat(1.0 / pk.st);
     let view = [S::load(a[7]), S::load(a[8]), S::load(a[9])];
     let mut kv = S::load(k);
     let kend = S::load(kend);
     let zero = S::splat(0.0);
     let one = S::splat(1.0);
+    // For the skips' exits: no division in the loop.
+    let inv_d = [one / d[0], one / d[1], one / d[2]];
+    let inv_st = S::splat(1.0 / pk.st);
     let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]));
     let stv = S::splat(pk.st);
     let top = S::splat((crate::transfer::LUT_SIZE - 1) as f32);
