@@ -140,6 +140,15 @@ impl<'a, T: Voxel> Grid<'a, T> {
     /// positions outside the grid are clamped to its boundary.
     #[inline(always)]
     pub fn sample(&self, p: Vec3) -> f32 {
+        let (base, f) = self.locate(p);
+        // SAFETY: `locate` returns a cell's lower corner.
+        unsafe { self.cell(base, f) * self.scale + self.offset }
+    }
+
+    /// The cell of `p` clamped into the grid: the index of its lower
+    /// corner and the fractions within it.
+    #[inline(always)]
+    fn locate(&self, p: Vec3) -> (usize, Vec3) {
         // `max` before `min`: f32::max returns the non-NaN operand, so a NaN
         // coordinate becomes 0 and every coordinate ends up in [0, dims − 1].
         let p = p.max(Vec3::ZERO).min(self.max);
@@ -153,10 +162,18 @@ impl<'a, T: Voxel> Grid<'a, T> {
                 (p.z.to_int_unchecked::<i32>() as usize).min(self.last[2]),
             )
         };
-        let fx = p.x - ix as f32;
-        let fy = p.y - iy as f32;
-        let fz = p.z - iz as f32;
-        let base = ix + self.dims[0] * (iy + self.dims[1] * iz);
+        let f = Vec3::new(p.x - ix as f32, p.y - iy as f32, p.z - iz as f32);
+        (ix + self.dims[0] * (iy + self.dims[1] * iz), f)
+    }
+
+    /// The trilinear value, in stored units, of the cell whose lower corner
+    /// is voxel `base`, at fractions `f`.
+    ///
+    /// # Safety
+    /// `base` is a cell's lower corner: its voxel's index is ≤ `last` on
+    /// every axis.
+    #[inline(always)]
+    unsafe fn cell(&self, base: usize, f: Vec3) -> f32 {
         let [dx, dy, dz] = self.step;
         let d = self.data;
         // SAFETY: ix ≤ dims[0]−1 and ix+dx ≤ dims[0]−1 (dx is 0 on a one-voxel
@@ -175,19 +192,38 @@ impl<'a, T: Voxel> Grid<'a, T> {
             )
         };
         // Seven lerps (S0 eqs. 7–9).
-        let c00 = c000 + (c100 - c000) * fx;
-        let c10 = c010 + (c110 - c010) * fx;
-        let c01 = c001 + (c101 - c001) * fx;
-        let c11 = c011 + (c111 - c011) * fx;
-        let c0 = c00 + (c10 - c00) * fy;
-        let c1 = c01 + (c11 - c01) * fy;
-        (c0 + (c1 - c0) * fz) * self.scale + self.offset
+        let c00 = c000 + (c100 - c000) * f.x;
+        let c10 = c010 + (c110 - c010) * f.x;
+        let c01 = c001 + (c101 - c001) * f.x;
+        let c11 = c011 + (c111 - c011) * f.x;
+        let c0 = c00 + (c10 - c00) * f.y;
+        let c1 = c01 + (c11 - c01) * f.y;
+        c0 + (c1 - c0) * f.z
     }
 
-    /// Central-difference gradient of the normalised field at `p`, per voxel
-    /// (six trilinear samples one voxel apart).
+    /// Central-difference gradient of the normalised field at `p`, per voxel:
+    /// the difference of the samples one voxel on either side on each axis.
+    /// Inside (a cell on both sides of `p`'s own, on every axis) those are
+    /// the neighbouring cells at `p`'s own fractions, so `p` is located once,
+    /// not six times; near a face, six clamped samples.
     #[inline(always)]
     pub fn gradient(&self, p: Vec3) -> Vec3 {
+        // ⌊p⌋ ≥ 1 and ⌊p⌋ + 2 ≤ dims − 1, i.e. 1 ≤ p < last (a NaN fails).
+        let inside = |x: f32, a: usize| x >= 1.0 && x < self.last[a] as f32;
+        if inside(p.x, 0) && inside(p.y, 1) && inside(p.z, 2) {
+            let (base, f) = self.locate(p);
+            let [dx, dy, dz] = self.step;
+            // SAFETY: inside, the cells at base ± step have their lower
+            // corners at ⌊p⌋ ± 1 on one axis, in 0..=last.
+            let (gx, gy, gz) = unsafe {
+                (
+                    self.cell(base + dx, f) - self.cell(base - dx, f),
+                    self.cell(base + dy, f) - self.cell(base - dy, f),
+                    self.cell(base + dz, f) - self.cell(base - dz, f),
+                )
+            };
+            return Vec3::new(gx, gy, gz) * (0.5 * self.scale);
+        }
         let gx = self.sample(p + Vec3::X) - self.sample(p - Vec3::X);
         let gy = self.sample(p + Vec3::Y) - self.sample(p - Vec3::Y);
         let gz = self.sample(p + Vec3::Z) - self.sample(p - Vec3::Z);
