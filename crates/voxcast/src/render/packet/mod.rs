@@ -15,8 +15,10 @@
 //! are two to four gathers (the +x neighbour comes in the same 32-bit
 //! load; u8 grids are read from a z-paired copy), the transfer-function
 //! rows are loaded whole and transposed, and compositing is plain vector
-//! arithmetic; shading adds the six trilinear fetches of the gradient,
-//! skipped when no lane's sample is visible. With empty-space skipping a
+//! arithmetic. Shading needs the gradient's six trilinear fetches; where
+//! the colour is only summed, the visible samples wait in a queue and are
+//! shaded sixteen at a time ([`shade`]), otherwise in the loop, skipped
+//! when no lane's sample is visible. With empty-space skipping a
 //! lane whose sample falls in an empty block jumps to its first sample
 //! past the empty cube around that block ([`skip_distances`]: one gather
 //! of the blocks' distances per iteration), so a long empty stretch costs
@@ -45,6 +47,7 @@ use super::stats::RenderStats;
 mod distance;
 mod importance;
 mod runs;
+mod shade;
 
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;

@@ -74,6 +74,21 @@ pub(super) trait Simd: Copy {
     /// (`i4`: float offsets), one 128-bit load per lane and a transpose.
     unsafe fn rows(table: *const f32, i4: Self::I) -> [Self::F; 4];
 
+    /// `N` floats from `p` (unaligned).
+    unsafe fn load_at(p: *const f32) -> Self::F;
+    unsafe fn load_at_i(p: *const i32) -> Self::I;
+    /// `N` floats to `p` (unaligned).
+    unsafe fn store_at(p: *mut f32, v: Self::F);
+    unsafe fn store_at_i(p: *mut i32, v: Self::I);
+    /// The lanes of `m`, in order, to `p` onwards; all `N` floats from
+    /// `p` on are written (those past `m`'s lanes unspecified).
+    unsafe fn compress_at(p: *mut f32, m: Self::M, v: Self::F);
+    unsafe fn compress_at_i(p: *mut i32, m: Self::M, v: Self::I);
+    /// Lane `idx[i]` of `v` in lane `i` (`idx` in `0..N`).
+    unsafe fn permute(v: Self::F, idx: Self::I) -> Self::F;
+    /// `0, 1, …, N − 1`.
+    unsafe fn iota() -> Self::I;
+
     /// Lane `i` of `m` is bit `i`.
     unsafe fn bits(m: Self::M) -> u32;
     unsafe fn from_bits(b: u32) -> Self::M;

@@ -2,6 +2,7 @@
 //! two widths (see the parent module): the trilinear gathers, the block
 //! exits of empty-space skipping, shading and the marching loop.
 
+use super::shade::{Deferred, Light};
 use super::simd::{Simd, W16, W8};
 use super::walk::{walk_imp, walk_runs, ImpState, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
@@ -93,7 +94,13 @@ struct Vol<S: Simd> {
     sz: S::I,
     dimx: S::I,
     dimy: S::I,
+    /// The element index of voxel (1, 1, 1).
+    inner: S::I,
+    /// `last` as floats.
+    lastf: [S::F; 3],
     scale: S::F,
+    /// `scale / 2`, for central differences in stored units.
+    half_scale: S::F,
     offset: S::F,
 }
 
@@ -110,18 +117,23 @@ impl<S: Simd> Vol<S> {
         ]
     }
 
-    /// The normalised trilinear value at `p` (voxel coordinates),
-    /// lane by lane `Grid::sample`.
+    /// The cell of `p` (clamped into the grid): the element index of its
+    /// lower corner and the fractions within it.
     #[inline(always)]
-    unsafe fn sample<T: Voxel>(&self, p: [S::F; 3]) -> S::F {
+    unsafe fn locate(&self, p: [S::F; 3]) -> (S::I, [S::F; 3]) {
         let [px, py, pz] = self.clamp(p);
         let ix = S::min_i(S::to_i(px), self.last[0]);
         let iy = S::min_i(S::to_i(py), self.last[1]);
         let iz = S::min_i(S::to_i(pz), self.last[2]);
-        let fx = px - S::to_f(ix);
-        let fy = py - S::to_f(iy);
-        let fz = pz - S::to_f(iz);
-        let base = ix + S::mullo(self.dimx, iy + S::mullo(self.dimy, iz));
+        let f = [px - S::to_f(ix), py - S::to_f(iy), pz - S::to_f(iz)];
+        (ix + S::mullo(self.dimx, iy + S::mullo(self.dimy, iz)), f)
+    }
+
+    /// The trilinear value, in stored units, of the cell whose lower
+    /// corner is element `base`, at fractions `f`.
+    #[inline(always)]
+    unsafe fn cell<T: Voxel>(&self, base: S::I, f: [S::F; 3]) -> S::F {
+        let [fx, fy, fz] = f;
         let (c000, c100, c010, c110, c001, c101, c011, c111);
         if T::KIND == VoxelKind::U8 {
             // Two gathers: rows y and y + 1 of the z-paired copy.
@@ -149,10 +161,19 @@ impl<S: Simd> Vol<S> {
         let c11 = lerp::<S>(c011, c111, fx);
         let c0 = lerp::<S>(c00, c10, fy);
         let c1 = lerp::<S>(c01, c11, fy);
-        lerp::<S>(c0, c1, fz) * self.scale + self.offset
+        lerp::<S>(c0, c1, fz)
     }
 
-    /// Central-difference gradient at `p`, lane by lane `Grid::gradient`.
+    /// The normalised trilinear value at `p` (voxel coordinates),
+    /// lane by lane `Grid::sample`.
+    #[inline(always)]
+    unsafe fn sample<T: Voxel>(&self, p: [S::F; 3]) -> S::F {
+        let (base, f) = self.locate(p);
+        self.cell::<T>(base, f) * self.scale + self.offset
+    }
+
+    /// Central-difference gradient at `p`, lane by lane `Grid::gradient`
+    /// near the grid's faces: six clamped samples.
     #[inline(always)]
     unsafe fn gradient<T: Voxel>(&self, p: [S::F; 3]) -> [S::F; 3] {
         let one = S::splat(1.0);
@@ -163,37 +184,60 @@ impl<S: Simd> Vol<S> {
         let gz = self.sample::<T>([x, y, z + one]) - self.sample::<T>([x, y, z - one]);
         [gx * half, gy * half, gz * half]
     }
-}
 
-/// `x^n` by repeated squaring (`n` ≤ 64).
-#[inline(always)]
-unsafe fn powi<S: Simd>(x: S::F, n: u32) -> S::F {
-    let mut r = S::splat(1.0);
-    let mut b = x;
-    let mut n = n;
-    while n > 0 {
-        if n & 1 == 1 {
-            r = r * b;
+    /// [`Vol::gradient`] for the lanes of `m` (others unspecified): where
+    /// all of them are inside (a cell on each side of their own, on every
+    /// axis), as `Grid::gradient` does, the neighbouring cells at the
+    /// lanes' own fractions, located once. In the marching loop six
+    /// samples measured faster (the compiler shares their work with the
+    /// sample's), so only the deferred shading, which has no sample, uses
+    /// this.
+    #[inline(always)]
+    unsafe fn gradient_cells<T: Voxel>(&self, p: [S::F; 3], m: S::M) -> [S::F; 3] {
+        let one = S::splat(1.0);
+        let [x, y, z] = p;
+        // ⌊p⌋ ≥ 1 and ⌊p⌋ + 2 ≤ dims − 1 on every axis, i.e.
+        // 1 ≤ p < last (a NaN fails).
+        let lf = self.lastf;
+        let ix = S::and(S::ge(x, one), S::lt(x, lf[0]));
+        let iy = S::and(S::ge(y, one), S::lt(y, lf[1]));
+        let iz = S::and(S::ge(z, one), S::lt(z, lf[2]));
+        if S::bits(S::but(m, S::and(S::and(ix, iy), iz))) != 0 {
+            return self.gradient::<T>(p);
         }
-        n >>= 1;
-        if n > 0 {
-            b = b * b;
-        }
+        // Lanes outside `m` read cell (1, 1, 1), inside as well.
+        let (base, f) = self.locate(p);
+        let base = S::blend_i(m, self.inner, base);
+        let (dx, dy, dz) = (S::splat_i(1), self.sy, self.sz);
+        let gx = self.cell::<T>(base + dx, f) - self.cell::<T>(base - dx, f);
+        let gy = self.cell::<T>(base + dy, f) - self.cell::<T>(base - dy, f);
+        let gz = self.cell::<T>(base + dz, f) - self.cell::<T>(base - dz, f);
+        let hs = self.half_scale;
+        [gx * hs, gy * hs, gz * hs]
     }
-    r
 }
 
-/// One channel of `BlinnPhong::shade` times the opacity: `min(c·k +
-/// spec, 1)·α`, or `c·α` where the gradient is `flat`.
+/// Shades a vector of the samples waiting in `dq` (`view`: the lanes'
+/// view directions) and adds them to their lanes.
+///
+/// # Safety
+/// The width's instructions.
 #[inline(always)]
-unsafe fn phong<S: Simd>(c: S::F, k: S::F, spec: S::F, flat: S::M, al: S::F) -> S::F {
-    let s = S::min(c * k + spec, S::splat(1.0));
-    S::blend(flat, s, c) * al
-}
-
-#[inline(always)]
-unsafe fn dot<S: Simd>(a: [S::F; 3], b: [S::F; 3]) -> S::F {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+unsafe fn shade_deferred<S: Simd, T: Voxel>(
+    dq: &mut Deferred,
+    vol: &Vol<S>,
+    light: &Light<S>,
+    view: [S::F; 3],
+) {
+    let b = dq.take::<S>();
+    let gr = vol.gradient_cells::<T>(b.p, b.m);
+    let v = [
+        S::permute(view[0], b.lane),
+        S::permute(view[1], b.lane),
+        S::permute(view[2], b.lane),
+    ];
+    let e = light.shade(gr, b.q, b.al, v);
+    dq.add::<S>(&b, e);
 }
 
 /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
@@ -287,7 +331,14 @@ unsafe fn march<
         sz: S::splat_i(step[2] as i32),
         dimx: S::splat_i(dims[0] as i32),
         dimy: S::splat_i(dims[1] as i32),
+        inner: S::splat_i((1 + dims[0] + dims[0] * dims[1]) as i32),
+        lastf: [
+            S::splat(last[0] as f32),
+            S::splat(last[1] as f32),
+            S::splat(last[2] as f32),
+        ],
         scale: S::splat(scale),
+        half_scale: S::splat(0.5 * scale),
         offset: S::splat(offset),
     };
     let mut a = [S::Af::default(); 12];
@@ -342,26 +393,15 @@ unsafe fn march<
         (false, _, Some(r)) if R::ON => r.tables().as_ptr() as *const f32,
         _ => pk.q.as_ptr() as *const f32,
     };
-    let rgb = f.lut.entries().as_ptr() as *const f32;
     let (we, wa) = (
         S::splat(pk.weights.emission),
         S::splat(pk.weights.absorption),
     );
     let stop = S::splat(pk.stop);
-    // Shading constants.
-    let bp = pk.shading.unwrap_or_default();
-    let inv_sp = [
-        S::splat(f.inv_spacing.x),
-        S::splat(f.inv_spacing.y),
-        S::splat(f.inv_spacing.z),
-    ];
-    let min_g2 = S::splat(bp.min_gradient * bp.min_gradient);
-    let (amb, dif, spe) = (
-        S::splat(bp.ambient),
-        S::splat(bp.diffuse),
-        S::splat(bp.specular),
-    );
-    let shin = bp.shininess as u32;
+    // Shading: deferred where the colour is only summed (see `shade`).
+    let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
+    let defer = SHADE && !R::ON;
+    let mut dq = Deferred::new();
     // Blocks, for skipping.
     let inv_bs = S::splat(1.0 / f.block_size as f32);
     let bsv = S::splat(f.block_size as f32);
@@ -525,20 +565,21 @@ unsafe fn march<
                     if !R::ON {
                         continue;
                     }
+                } else if defer {
+                    // The colour waits in the queue, the opacity is
+                    // composited now (with `e` zero).
+                    let w = we * (one - col[3]);
+                    if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
+                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                    }
+                    cnt_shaded = S::count(cnt_shaded, valid);
                 } else {
-                    let [r, g, b, _] = S::rows(rgb, i4);
                     let gr = vol.gradient::<T>(p);
-                    let flat = S::lt(dot::<S>(gr, gr), min_g2);
-                    let gw = [gr[0] * inv_sp[0], gr[1] * inv_sp[1], gr[2] * inv_sp[2]];
-                    let inv_len = one / S::sqrt(dot::<S>(gw, gw));
-                    let n = [gw[0] * inv_len, gw[1] * inv_len, gw[2] * inv_len];
-                    let ndl = S::abs(dot::<S>(n, view));
-                    let spec = spe * powi::<S>(ndl, shin);
-                    let k = amb + dif * ndl;
+                    let c = light.shade(gr, [qr, qg, qb], al, view);
                     e = [
-                        S::keep(valid, phong::<S>(r, k, spec, flat, al)),
-                        S::keep(valid, phong::<S>(g, k, spec, flat, al)),
-                        S::keep(valid, phong::<S>(b, k, spec, flat, al)),
+                        S::keep(valid, c[0]),
+                        S::keep(valid, c[1]),
+                        S::keep(valid, c[2]),
                     ];
                     cnt_shaded = S::count(cnt_shaded, valid);
                 }
@@ -583,6 +624,14 @@ unsafe fn march<
     }
     if !R::ON {
         cnt_interp = cnt;
+    }
+    if defer {
+        while dq.waiting() > 0 {
+            shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+        }
+        for (c, acc) in dq.acc.iter().enumerate() {
+            col[c] = col[c] + S::load_at(acc.as_ptr());
+        }
     }
     let col = [
         S::store(col[0]),

@@ -47,6 +47,37 @@ unsafe fn odds(a: __m256, b: __m256) -> __m256 {
     _mm256_castpd_ps(_mm256_permute4x64_pd::<0xD8>(_mm256_castps_pd(s)))
 }
 
+/// For each 8-lane mask, the lanes it holds in order, a nibble each
+/// (the rest zero): AVX2 has no compress, so a permute by this order.
+static COMPRESS: [u32; 256] = {
+    let mut t = [0u32; 256];
+    let mut m = 0;
+    while m < 256 {
+        let (mut packed, mut k, mut i) = (0u32, 0, 0);
+        while i < 8 {
+            if (m >> i) & 1 == 1 {
+                packed |= (i as u32) << (4 * k);
+                k += 1;
+            }
+            i += 1;
+        }
+        t[m] = packed;
+        m += 1;
+    }
+    t
+};
+
+/// The permute that moves the lanes of `m` to the front, in order.
+#[inline(always)]
+unsafe fn compress_order(m: __m256) -> __m256i {
+    let packed = COMPRESS[_mm256_movemask_ps(m) as usize & 0xff];
+    let sh = _mm256_srlv_epi32(
+        _mm256_set1_epi32(packed as i32),
+        _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28),
+    );
+    _mm256_and_si256(sh, _mm256_set1_epi32(7))
+}
+
 impl Simd for W8 {
     const N: usize = 8;
     type F = F8;
@@ -226,6 +257,40 @@ impl Simd for W8 {
             F8(evens(ba_lo, ba_hi)),
             F8(odds(ba_lo, ba_hi)),
         ]
+    }
+
+    #[inline(always)]
+    unsafe fn load_at(p: *const f32) -> F8 {
+        F8(_mm256_loadu_ps(p))
+    }
+    #[inline(always)]
+    unsafe fn load_at_i(p: *const i32) -> I8 {
+        I8(_mm256_loadu_si256(p as *const __m256i))
+    }
+    #[inline(always)]
+    unsafe fn store_at(p: *mut f32, v: F8) {
+        _mm256_storeu_ps(p, v.0)
+    }
+    #[inline(always)]
+    unsafe fn store_at_i(p: *mut i32, v: I8) {
+        _mm256_storeu_si256(p as *mut __m256i, v.0)
+    }
+    #[inline(always)]
+    unsafe fn compress_at(p: *mut f32, m: __m256, v: F8) {
+        _mm256_storeu_ps(p, _mm256_permutevar8x32_ps(v.0, compress_order(m)))
+    }
+    #[inline(always)]
+    unsafe fn compress_at_i(p: *mut i32, m: __m256, v: I8) {
+        let i = compress_order(m);
+        _mm256_storeu_si256(p as *mut __m256i, _mm256_permutevar8x32_epi32(v.0, i))
+    }
+    #[inline(always)]
+    unsafe fn permute(v: F8, idx: I8) -> F8 {
+        F8(_mm256_permutevar8x32_ps(v.0, idx.0))
+    }
+    #[inline(always)]
+    unsafe fn iota() -> I8 {
+        I8(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7))
     }
 
     #[inline(always)]
