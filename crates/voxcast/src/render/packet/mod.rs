@@ -1,4 +1,4 @@
-//! SIMD ray packets: the sixteen rays of a tile row marched in lock-step —
+//! SIMD ray packets: sixteen rays (a 4×4 square of a tile) marched in lock-step —
 //! in one AVX-512 register, or as two packets of eight in AVX2 registers —
 //! for the commonest render — a fixed step (`uniform`, `jitter`),
 //! trilinear, flat or Blinn–Phong shaded, front to back — for
@@ -58,7 +58,7 @@ pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
 pub(in crate::render) use runs::{Adapt, Runs};
 
-/// Lanes of a packet: one row of a tile. AVX-512 marches them in one
+/// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
 /// register, AVX2 as two packets of eight.
 pub(super) const LANES: usize = 16;
 

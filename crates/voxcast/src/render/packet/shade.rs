@@ -237,7 +237,11 @@ impl Deferred {
     #[inline(always)]
     pub(super) unsafe fn add<S: Simd>(&mut self, b: &Batch<S>, e: [S::F; 3]) {
         let lane = S::store_i(b.lane);
-        let v = [S::store(e[0] * b.w), S::store(e[1] * b.w), S::store(e[2] * b.w)];
+        let v = [
+            S::store(e[0] * b.w),
+            S::store(e[1] * b.w),
+            S::store(e[2] * b.w),
+        ];
         for j in 0..b.k {
             let l = lane[j] as usize;
             self.acc[0][l] += v[0][j];
