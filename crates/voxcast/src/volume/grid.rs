@@ -253,3 +253,49 @@ pub(super) fn visit<V: GridVisitor>(vol: &Volume, lo: f32, hi: f32, visitor: V) 
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `Grid::gradient` reads the neighbouring cells where the sample is a
+    /// cell away from every face: it must equal six clamped samples there,
+    /// and stay six samples near the faces and outside.
+    #[test]
+    fn gradient_is_six_samples_inside_and_near_the_faces() {
+        let dims = [9usize, 7, 6];
+        let n: usize = dims.iter().product();
+        let data: Vec<u16> = (0..n).map(|i| ((i * 7919 + i * i) % 1000) as u16).collect();
+        let g = Grid::new(&data, dims, 0.0, 1000.0);
+        let mut state = 0x2545_f491u32;
+        let mut r = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state as f32 / u32::MAX as f32
+        };
+        let mut inside = 0;
+        for _ in 0..5000 {
+            // From one voxel outside to one beyond the far face.
+            let p = Vec3::new(
+                r() * (dims[0] + 1) as f32 - 1.0,
+                r() * (dims[1] + 1) as f32 - 1.0,
+                r() * (dims[2] + 1) as f32 - 1.0,
+            );
+            let six = Vec3::new(
+                g.sample(p + Vec3::X) - g.sample(p - Vec3::X),
+                g.sample(p + Vec3::Y) - g.sample(p - Vec3::Y),
+                g.sample(p + Vec3::Z) - g.sample(p - Vec3::Z),
+            ) * 0.5;
+            let got = g.gradient(p);
+            assert!(
+                (got - six).abs().max_element() < 1e-5,
+                "at {p}: {got} against six samples' {six}"
+            );
+            let a = p.to_array();
+            inside += (0..3).all(|i| a[i] >= 1.0 && a[i] < (dims[i] - 2) as f32) as u32;
+        }
+        // Both paths ran.
+        assert!(inside > 500 && inside < 4500, "{inside} of 5000 inside");
+    }
+}
