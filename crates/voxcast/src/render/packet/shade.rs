@@ -14,6 +14,7 @@
 //! marches, which keep a shaded sample for reuse).
 
 use super::simd::Simd;
+use super::LANES;
 use crate::render::shading::BlinnPhong;
 use glam::Vec3;
 
@@ -124,7 +125,7 @@ pub(super) struct Deferred {
     q: [[f32; CAP]; 3],
     lane: [i32; CAP],
     /// Each lane's shaded colour so far.
-    pub(super) acc: [[f32; 16]; 3],
+    pub(super) acc: [[f32; LANES]; 3],
 }
 
 /// A vector of waiting samples, taken from the queue to be shaded.
@@ -147,11 +148,11 @@ impl Deferred {
             al: [0.0; CAP],
             q: [[0.0; CAP]; 3],
             lane: [0; CAP],
-            acc: [[0.0; 16]; 3],
+            acc: [[0.0; LANES]; 3],
         }
     }
 
-    /// Queues the samples of lanes `m` (`S::N` ≤ 16 lanes); true when a
+    /// Queues the samples of lanes `m` (`S::N` ≤ `LANES`); true when a
     /// vector's worth waits (then [`Deferred::take`] before the next
     /// push).
     ///

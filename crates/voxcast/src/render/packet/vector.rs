@@ -172,8 +172,9 @@ impl<S: Simd> Vol<S> {
         self.cell::<T>(base, f) * self.scale + self.offset
     }
 
-    /// Central-difference gradient at `p`, lane by lane `Grid::gradient`
-    /// near the grid's faces: six clamped samples.
+    /// Central-difference gradient at `p` by six clamped samples: lane by
+    /// lane `Grid::gradient` near the grid's faces, and inside to a
+    /// rounding (see [`Vol::gradient_cells`]).
     #[inline(always)]
     unsafe fn gradient<T: Voxel>(&self, p: [S::F; 3]) -> [S::F; 3] {
         let one = S::splat(1.0);
