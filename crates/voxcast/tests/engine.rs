@@ -359,7 +359,23 @@ fn step_per_block_packets_give_the_scalar_pixels() {
         opacity: vec![[0.0, 0.0], [0.2, 0.0], [0.5, 0.6], [1.0, 1.0]],
         window: None,
     };
-    for vol in typed_volumes() {
+    // And a hard-edged box: runs end in full opacity at a face with empty
+    // blocks behind it.
+    let dims = [40usize, 24, 20];
+    let edged = (0..dims.iter().product::<usize>())
+        .map(|i| {
+            let (x, y, z) = (i % 40, i / 40 % 24, i / (40 * 24));
+            200 * ((9..21).contains(&x) && (5..15).contains(&y) && (3..13).contains(&z)) as u8
+        })
+        .collect();
+    let edged = voxcast::Volume::new(
+        dims,
+        glam::Vec3::ONE,
+        glam::Vec3::ZERO,
+        voxcast::volume::VoxelData::U8(edged),
+    )
+    .unwrap();
+    for vol in typed_volumes().into_iter().chain([edged]) {
         let s = vol.stats();
         let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
         let (mut terminated, mut grouped_reuse) = (0, 0);
@@ -370,7 +386,11 @@ fn step_per_block_packets_give_the_scalar_pixels() {
             (Method::AdaptiveMax, false),
             (Method::Uniform, true),
         ] {
-            for (skip_empty, jitter) in [(true, true), (false, false), (true, false)] {
+            // Blocks of 4 leave empty blocks between the blobs and behind
+            // them, where runs end and walks finish.
+            for (skip_empty, jitter, block_size) in
+                [(true, true, 8), (false, false, 8), (true, false, 4)]
+            {
                 for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
                     let mut p = RenderParams {
                         width: 45,
@@ -379,6 +399,7 @@ fn step_per_block_packets_give_the_scalar_pixels() {
                         grouped,
                         shading,
                         skip_empty,
+                        block_size,
                         ert,
                         jitter,
                         seed: 5,
@@ -393,7 +414,7 @@ fn step_per_block_packets_give_the_scalar_pixels() {
                         let (simd, ss) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
                         let d = max_diff(&simd, &scalar);
                         let what = format!(
-                            "{name}: {}{} {:?} skip {skip_empty} jitter {jitter} ert {ert} shading {shading}",
+                            "{name}: {}{} {:?} skip {skip_empty} jitter {jitter} block {block_size} ert {ert} shading {shading}",
                             method.name(),
                             if grouped { "+grouped" } else { "" },
                             vol.scalar_type()

@@ -578,10 +578,13 @@ impl Job<'_> {
                 .iter()
                 .flat_map(|q| q.iter().copied())
                 .collect();
+            let empty: Vec<i32> = f.empty.iter().map(|&e| e as i32).collect();
             let runs = packet::Adapt {
                 steps: m,
                 tables: &tables,
                 grouped: self.params.grouped,
+                empty: &empty,
+                skip_empty: f.skip_empty,
             };
             if let Some(out) = self.packets(f, t, None, Some(&runs)) {
                 return out;

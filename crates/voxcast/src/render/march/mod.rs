@@ -18,7 +18,7 @@ mod threshold;
 #[cfg(test)]
 pub(super) use steps::{classified_level, round_log2};
 pub(super) use steps::{
-    BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps,
+    flush, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
 };
 pub(super) use threshold::Threshold;
 
@@ -119,6 +119,14 @@ impl BlockWalker {
             size: b,
             stay: false,
         }
+    }
+}
+
+impl BlockWalker {
+    /// The walk's state: the block it is in (per axis), where it leaves
+    /// that block on each axis (∞: never), and where it stands.
+    pub fn state(&self) -> ([i64; 3], [f32; 3], f32) {
+        (self.block, self.t_max, self.t)
     }
 }
 

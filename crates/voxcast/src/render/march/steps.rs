@@ -37,6 +37,25 @@ pub(in crate::render) trait Level: Sync {
     ) -> (i32, u32)
     where
         Self: Sized;
+
+    /// The rule for the packets' vector walk.
+    fn vector(&self) -> VRule<'_> {
+        VRule::Scalar
+    }
+}
+
+/// A [`Level`] rule as the packets' vector walk reads it: `k` per block
+/// from a table, or nothing to read (the lanes walk in scalar code).
+#[derive(Clone, Copy)]
+pub(in crate::render) enum VRule<'a> {
+    /// `adaptive-s0`'s gradient at each block's midpoint: a scalar walk.
+    Scalar,
+    /// [`Fixed`].
+    Fixed,
+    /// [`BlockMax`]'s table.
+    Max(&'a [f32]),
+    /// [`Classified`]'s table.
+    Classified(&'a [f32]),
 }
 
 /// One step everywhere (`uniform`, `jitter`).
@@ -44,6 +63,9 @@ pub(in crate::render) struct Fixed;
 
 impl Level for Fixed {
     const FIXED: bool = true;
+    fn vector(&self) -> VRule<'_> {
+        VRule::Fixed
+    }
     #[inline(always)]
     fn level<T: Voxel>(
         &self,
@@ -83,6 +105,9 @@ impl Level for Midpoint {
 pub(in crate::render) struct BlockMax<'a>(pub &'a [f32]);
 
 impl Level for BlockMax<'_> {
+    fn vector(&self) -> VRule<'_> {
+        VRule::Max(self.0)
+    }
     #[inline(always)]
     fn level<T: Voxel>(
         &self,
@@ -107,6 +132,9 @@ impl Level for BlockMax<'_> {
 pub(in crate::render) struct Classified<'a>(pub &'a [f32]);
 
 impl Level for Classified<'_> {
+    fn vector(&self) -> VRule<'_> {
+        VRule::Classified(self.0)
+    }
     #[inline(always)]
     fn level<T: Voxel>(
         &self,
@@ -193,7 +221,12 @@ pub(in crate::render) struct Pending {
 /// Composites `p` over the stretch up to `t_next` (opacity corrected for
 /// the stretch's length, colour scaled with it); true when the ray may stop.
 #[inline(always)]
-fn flush<T, C: Composite>(f: &Frame<'_, T>, p: Pending, t_next: f32, c: &mut C) -> bool {
+pub(in crate::render) fn flush<T, C: Composite>(
+    f: &Frame<'_, T>,
+    p: Pending,
+    t_next: f32,
+    c: &mut C,
+) -> bool {
     if p.a <= 0.0 {
         return false;
     }
@@ -325,7 +358,7 @@ impl<L> Steps<'_, L> {
 /// hands out the next run.
 pub(in crate::render) struct RunWalk {
     pub seg: Segment,
-    walker: BlockWalker,
+    pub walker: BlockWalker,
     /// The current run, still growing.
     cur: Option<Run>,
     /// The block that ended the run handed out last, not yet taken.

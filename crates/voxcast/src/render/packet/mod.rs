@@ -557,4 +557,6 @@ mod simd;
 #[cfg(target_arch = "x86_64")]
 mod vector;
 #[cfg(target_arch = "x86_64")]
+mod vwalk;
+#[cfg(target_arch = "x86_64")]
 mod walk;

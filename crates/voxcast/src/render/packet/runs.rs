@@ -6,9 +6,10 @@
 //! The last sample of a run waits, as in [`Steps::march`], until the walk
 //! knows where its stretch ends; the walk composites it.
 
+use super::vwalk::VParams;
 use super::{Lane, Packets, Setup};
 use crate::render::composite::Front;
-use crate::render::march::{Level, Next, RunWalk, Steps};
+use crate::render::march::{Level, Next, RunWalk, Steps, VRule};
 use crate::render::ray::{Counters, Frame, Segment};
 use crate::render::stats::RenderStats;
 use crate::volume::Voxel;
@@ -29,6 +30,9 @@ pub(in crate::render) trait Runs<T: Voxel>: Sync {
     /// The lane's next run (see [`RunWalk::next`]), compositing its
     /// pending sample into `c`.
     fn next(&self, f: &Frame<'_, T>, w: &mut RunWalk, c: &mut Front, n: &mut Counters) -> Next;
+    /// What the lanes' vector walk reads, where the rule's level is a
+    /// table lookup; `None`: the lanes walk in scalar code (`next`).
+    fn vector(&self) -> Option<VParams<'_>>;
 }
 
 impl<T: Voxel> Runs<T> for () {
@@ -45,6 +49,9 @@ impl<T: Voxel> Runs<T> for () {
     fn next(&self, _: &Frame<'_, T>, _: &mut RunWalk, _: &mut Front, _: &mut Counters) -> Next {
         Next::Ended
     }
+    fn vector(&self) -> Option<VParams<'_>> {
+        None
+    }
 }
 
 /// A step-per-block march for the packets: the marcher, its levels'
@@ -53,6 +60,10 @@ pub(in crate::render) struct Adapt<'a, L> {
     pub steps: &'a Steps<'a, L>,
     pub tables: &'a [[f32; 4]],
     pub grouped: bool,
+    /// Each block's emptiness (0 or 1), for the vector walk; the frame's
+    /// `skip_empty`.
+    pub empty: &'a [i32],
+    pub skip_empty: bool,
 }
 
 impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
@@ -69,6 +80,20 @@ impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
     #[inline(always)]
     fn next(&self, f: &Frame<'_, T>, w: &mut RunWalk, c: &mut Front, n: &mut Counters) -> Next {
         w.next(self.steps, f, self.grouped, c, n)
+    }
+    fn vector(&self) -> Option<VParams<'_>> {
+        let st = self.steps;
+        let rule = st.rule.vector();
+        (!matches!(rule, VRule::Scalar)).then_some(VParams {
+            rule,
+            lo: st.level_lo,
+            hi: st.level_hi,
+            steps: st.level_steps,
+            k_ref: st.k_ref,
+            empty: self.empty,
+            skip_empty: self.skip_empty,
+            per_block: self.grouped,
+        })
     }
 }
 

@@ -51,6 +51,8 @@ pub(super) trait Simd: Copy {
     unsafe fn load_i(a: Self::Ai) -> Self::I;
     unsafe fn store_i(v: Self::I) -> Self::Ai;
     unsafe fn to_f(a: Self::I) -> Self::F;
+    /// The float's bits, reinterpreted.
+    unsafe fn as_bits(a: Self::F) -> Self::I;
     unsafe fn mullo(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn min_i(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn max_i(a: Self::I, b: Self::I) -> Self::I;

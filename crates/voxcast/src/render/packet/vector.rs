@@ -4,6 +4,7 @@
 
 use super::shade::{Deferred, Light};
 use super::simd::{Simd, W16, W8};
+use super::vwalk::{Rays, VWalk};
 use super::walk::{walk_imp, walk_runs, ImpState, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::{Voxel, VoxelKind};
@@ -386,6 +387,17 @@ unsafe fn march<
     let inv_d = [one / d[0], one / d[1], one / d[2]];
     let inv_st = S::splat(1.0 / pk.st);
     let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]));
+    // The lanes' block walks in vector registers, where the rule allows.
+    let mut vw = match pk.runs.and_then(|r| r.vector()) {
+        Some(p) if R::ON => Some(VWalk::<S>::new(
+            p,
+            st,
+            f.block_counts,
+            f.block_size,
+            Rays { o, d, inv_d, t0 },
+        )),
+        _ => None,
+    };
     let stv = S::splat(pk.st);
     let top = S::splat((crate::transfer::LUT_SIZE - 1) as f32);
     let half = S::splat(0.5);
@@ -452,7 +464,10 @@ unsafe fn march<
             let need = S::and(live, S::ge(kv, rr.kend));
             let bits = S::bits(need);
             if bits != 0 {
-                let (ended, dead) = walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col);
+                let (ended, dead) = match vw.as_mut() {
+                    Some(vw) => vw.next(pk, need, &mut rr, &mut kv, &mut col),
+                    None => walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col),
+                };
                 live = S::but(live, S::or(ended, dead));
                 walked = S::or(walked, ended);
             }

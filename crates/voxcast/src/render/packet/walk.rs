@@ -28,9 +28,9 @@ pub(super) struct RunRegs<S: Simd> {
     pub last_idx: S::I,
     pub last_ok: S::M,
     /// The run's last sample: colour, opacity, position, entry, validity.
-    pend: [S::F; 5],
-    pend_idx: S::I,
-    pend_ok: S::M,
+    pub pend: [S::F; 5],
+    pub pend_idx: S::I,
+    pub pend_ok: S::M,
 }
 
 impl<S: Simd> RunRegs<S> {

@@ -1,0 +1,415 @@
+//! The step-per-block lanes' block walks in vector registers: where a
+//! rule's level is a table lookup (`uniform` grouped, `adaptive`,
+//! `adaptive-max`), every lane that needs its next run walks its blocks in
+//! lock-step with the others — the 3D DDA, the block's emptiness and level,
+//! the run's first and last sample, the merging of blocks that share a
+//! level — one block per lane per iteration, instead of one lane at a time
+//! in scalar code ([`super::walk::walk_runs`], which `adaptive-s0` keeps:
+//! its level needs a gradient per block).
+//!
+//! It is [`RunWalk::next`] operation for operation — the same crossings
+//! from the same planes, the same divisions and roundings — so the lanes
+//! get the scalar walk's runs. Only the compositing of a run's last
+//! sample over its stretch (an `exp` per run, not per block) stays scalar.
+//!
+//! [`RunWalk::next`]: crate::render::march::RunWalk::next
+
+use super::simd::Simd;
+use super::walk::RunRegs;
+use super::{Packets, Runs, State};
+use crate::render::composite::Front;
+use crate::render::march::{flush, Pending, VRule};
+use crate::transfer::LUT_SIZE;
+use crate::volume::Voxel;
+use glam::{Vec3, Vec4};
+
+/// What the vector walk reads of a step-per-block march.
+pub(in crate::render) struct VParams<'a> {
+    pub rule: VRule<'a>,
+    /// The levels `lo..=hi` and their steps (world units).
+    pub lo: i32,
+    pub hi: i32,
+    pub steps: &'a [f32],
+    pub k_ref: f32,
+    /// Each block's emptiness under the transfer function, as 0 or 1.
+    pub empty: &'a [i32],
+    /// Skipping empty blocks; a run per block (grouped reuse).
+    pub skip_empty: bool,
+    pub per_block: bool,
+}
+
+/// The lanes' walks: each lane's block (per axis), where it leaves it on
+/// each axis, where it stands; the run it is merging (`cur`: first sample,
+/// end, level index, group cap) and the block that ended the run it was
+/// handed last (`held`, and whether that block is skipped); whether its
+/// walk is over. And what every walk shares.
+pub(super) struct VWalk<'a, S: Simd> {
+    p: VParams<'a>,
+    blk: [S::I; 3],
+    tmax: [S::F; 3],
+    t: S::F,
+    t_out: S::F,
+    t_stop: S::F,
+    t_end: S::F,
+    cur: [S::F; 4],
+    cur_ok: S::M,
+    held: [S::F; 4],
+    held_ok: S::M,
+    held_skip: S::M,
+    ended: S::M,
+    // Shared: the rays (voxel coordinates), their sample grids' start,
+    // each axis's direction (−1, 0, 1; 1 as a float where it goes up),
+    // the block grid.
+    o: [S::F; 3],
+    inv_d: [S::F; 3],
+    t0: S::F,
+    sgn: [S::I; 3],
+    up: [S::F; 3],
+    moving: [S::M; 3],
+    size: S::F,
+    last: [S::I; 3],
+    ncx: S::I,
+    ncy: S::I,
+    /// `2^j` per level index.
+    pow2: [f32; 16],
+}
+
+/// Level index, first and end sample and group cap of a block or run.
+type Run<S> = [<S as Simd>::F; 4];
+
+/// The lanes' rays: origin, direction and its reciprocal (voxel
+/// coordinates), and where their sample grids start.
+pub(super) struct Rays<S: Simd> {
+    pub o: [S::F; 3],
+    pub d: [S::F; 3],
+    pub inv_d: [S::F; 3],
+    pub t0: S::F,
+}
+
+impl<'a, S: Simd> VWalk<'a, S> {
+    /// The walks of the lanes of `st.runs` (each where its [`RunWalk`]
+    /// was set up), on the rays `o + d·t` (`inv_d = 1/d`), sample grids
+    /// from `t0`.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    ///
+    /// [`RunWalk`]: crate::render::march::RunWalk
+    #[inline(always)]
+    pub unsafe fn new(
+        p: VParams<'a>,
+        st: &State<'_>,
+        counts: [usize; 3],
+        size: usize,
+        Rays { o, d, inv_d, t0 }: Rays<S>,
+    ) -> Self {
+        let mut a = [S::Af::default(); 7];
+        let mut bi = [S::Ai::default(); 3];
+        for (i, w) in st.runs.iter().enumerate().take(S::N) {
+            let Some(w) = w else { continue };
+            let (b, tm, t) = w.walker.state();
+            for c in 0..3 {
+                bi[c][i] = b[c] as i32;
+                a[c][i] = tm[c];
+            }
+            a[3][i] = t;
+            a[4][i] = w.seg.t_out;
+            a[5][i] = w.seg.walk.1;
+            a[6][i] = w.seg.t_end();
+        }
+        let zero = S::splat(0.0);
+        let sgn = [0, 1, 2].map(|c| {
+            let up = S::gt(d[c], zero);
+            let down = S::lt(d[c], zero);
+            S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
+        });
+        let mut pow2 = [0.0f32; 16];
+        for (li, v) in pow2.iter_mut().enumerate() {
+            *v = 2f32.powi((p.lo + li as i32).clamp(-126, 127));
+        }
+        let z = [zero; 4];
+        VWalk {
+            p,
+            blk: [S::load_i(bi[0]), S::load_i(bi[1]), S::load_i(bi[2])],
+            tmax: [S::load(a[0]), S::load(a[1]), S::load(a[2])],
+            t: S::load(a[3]),
+            t_out: S::load(a[4]),
+            t_stop: S::load(a[5]),
+            t_end: S::load(a[6]),
+            cur: z,
+            cur_ok: S::from_bits(0),
+            held: z,
+            held_ok: S::from_bits(0),
+            held_skip: S::from_bits(0),
+            ended: S::from_bits(0),
+            o,
+            inv_d,
+            t0,
+            sgn,
+            up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
+            moving: [0, 1, 2].map(|c| S::or(S::gt(d[c], zero), S::lt(d[c], zero))),
+            size: S::splat(size as f32),
+            last: counts.map(|n| S::splat_i(n as i32 - 1)),
+            ncx: S::splat_i(counts[0] as i32),
+            ncy: S::splat_i(counts[1] as i32),
+            pow2,
+        }
+    }
+
+    /// Where the ray leaves block `b` on axis `c` (`BlockWalker`'s
+    /// `crossing`: the far plane's `(plane − o)·(1/d)`; ∞ where the ray
+    /// does not move on that axis).
+    #[inline(always)]
+    unsafe fn crossing(&self, c: usize, b: S::I) -> S::F {
+        let plane = (S::to_f(b) + self.up[c]) * self.size;
+        let t = (plane - self.o[c]) * self.inv_d[c];
+        S::blend(self.moving[c], S::splat(f32::INFINITY), t)
+    }
+
+    /// `round(log₂ x)` ([`crate::render::march`]'s `round_log2`), clamped
+    /// to the levels, as a float.
+    #[inline(always)]
+    unsafe fn level(&self, x: S::F) -> S::F {
+        let b = S::and_i(S::as_bits(x), S::splat_i(0x7fff_ffff));
+        let e = S::srl(b, 23) - S::splat_i(127);
+        let round_up = S::positive(S::and_i(b, S::splat_i(0x7f_ffff)) - S::splat_i(0x35_04f3));
+        let j = S::count(e, round_up);
+        S::to_f(S::max_i(
+            S::min_i(j, S::splat_i(self.p.hi)),
+            S::splat_i(self.p.lo),
+        ))
+    }
+
+    /// The level `j` (a float) and group cap (at most 3) of the lanes'
+    /// blocks `b` (indices, zero in idle lanes), crossed over `ta..tb`,
+    /// `e` the empty ones: [`crate::render::march::Level::level`] of the
+    /// rule.
+    #[inline(always)]
+    unsafe fn rule(&self, b: S::I, ta: S::F, tb: S::F, e: S::M) -> (S::F, S::F) {
+        let (hi, three) = (S::splat(self.p.hi as f32), S::splat(3.0));
+        let tm = S::max(S::splat(0.5) * (ta + tb), S::splat(1e-6));
+        let k_ref = S::splat(self.p.k_ref);
+        let zero = S::splat(0.0);
+        let (j, cap) = match self.p.rule {
+            VRule::Fixed => return (zero, three),
+            VRule::Max(k) => {
+                let k = S::gather_f::<4>(k.as_ptr(), b);
+                let f = k * self.t_out / tm;
+                (S::blend(S::gt(f, zero), hi, self.level(k_ref / f)), three)
+            }
+            VRule::Classified(k) => {
+                let k = S::gather_f::<4>(k.as_ptr(), b);
+                let x = k_ref / (k * (self.t_out / tm));
+                let j = self.level(x);
+                let li = S::to_i(j - S::splat(self.p.lo as f32));
+                let p2 = S::gather_f::<4>(self.pow2.as_ptr(), li);
+                let cap = S::min(S::max(S::floor(x / p2), S::splat(1.0)), three);
+                let none = S::ge(zero, k);
+                (S::blend(none, j, hi), S::blend(none, cap, three))
+            }
+            // `new`'s callers check.
+            VRule::Scalar => unreachable!(),
+        };
+        (S::blend(e, j, hi), S::blend(e, cap, three))
+    }
+
+    /// The step (world units) of level indices `li`.
+    #[inline(always)]
+    unsafe fn step(&self, li: S::F) -> S::F {
+        S::gather_f::<4>(self.p.steps.as_ptr(), S::to_i(li))
+    }
+
+    /// The lanes of `need`, past their run: each composites its run's
+    /// last sample over its stretch and walks on to its next run, which
+    /// `rr` and `kv` then hold. Returns the masks of the lanes whose walk
+    /// ended and of those that terminated.
+    ///
+    /// # Safety
+    /// The width's instructions; `need` only lanes with a walk.
+    #[inline(always)]
+    pub unsafe fn next<T: Voxel, R: Runs<T>>(
+        &mut self,
+        pk: &Packets<'_, T, R>,
+        need: S::M,
+        rr: &mut RunRegs<S>,
+        kv: &mut S::F,
+        col: &mut [S::F; 4],
+    ) -> (S::M, S::M) {
+        let zero = S::splat(0.0);
+        let none = S::from_bits(0);
+        // A held block: the pending sample's stretch ends at its first
+        // sample, whether or not it is skipped; then it is the current run
+        // unless skipped.
+        let mut dead = none;
+        let h = S::and(need, self.held_ok);
+        if S::bits(h) != 0 {
+            let t_next = self.t0 + self.held[1] * self.step(self.held[0]);
+            dead = flush_lanes(pk, h, t_next, false, rr, col);
+            let take = S::but(h, self.held_skip);
+            for (c, v) in self.cur.iter_mut().zip(self.held) {
+                *c = S::blend(take, *c, v);
+            }
+            self.cur_ok = S::or(self.cur_ok, take);
+            self.held_ok = S::but(self.held_ok, h);
+        }
+        let mut m = S::but(need, dead);
+        let (mut found, mut fin) = (none, none);
+        let mut out: Run<S> = [zero; 4];
+        loop {
+            // Walks that are over hand out their current run, or finish.
+            let over = S::and(m, S::or(self.ended, S::ge(self.t, self.t_out)));
+            if S::bits(over) != 0 {
+                self.ended = S::or(self.ended, over);
+                let hand = S::and(over, self.cur_ok);
+                for (o, c) in out.iter_mut().zip(self.cur) {
+                    *o = S::blend(hand, *o, c);
+                }
+                found = S::or(found, hand);
+                fin = S::or(fin, S::but(over, self.cur_ok));
+                self.cur_ok = S::but(self.cur_ok, over);
+                m = S::but(m, over);
+            }
+            if S::bits(m) == 0 {
+                break;
+            }
+            // One block per lane (`BlockWalker::next`).
+            let [t0m, t1m, t2m] = self.tmax;
+            let ax0 = S::and(S::ge(t1m, t0m), S::ge(t2m, t0m));
+            let ax1 = S::but(S::ge(t2m, t1m), ax0);
+            let ax = [ax0, ax1, S::but(S::but(m, ax0), ax1)];
+            let tsel = S::blend(ax0, S::blend(ax1, t2m, t1m), t0m);
+            let ta = self.t;
+            let tb = S::max(S::min(tsel, self.t_out), ta);
+            let [bx, by, bz] = self.blk;
+            let b = S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)));
+            self.t = S::blend(m, self.t, tb);
+            for (c, axc) in ax.into_iter().enumerate() {
+                let mc = S::and(m, axc);
+                let nb = S::blend_i(mc, self.blk[c], self.blk[c] + self.sgn[c]);
+                let outside = S::and(
+                    mc,
+                    S::or(
+                        S::positive(S::splat_i(0) - nb),
+                        S::positive(nb - self.last[c]),
+                    ),
+                );
+                // Past the grid on this axis: the walk stays in the edge
+                // block, with no more crossings on it.
+                self.blk[c] = S::blend_i(outside, nb, nb - self.sgn[c]);
+                let tm = S::blend(mc, self.tmax[c], self.crossing(c, self.blk[c]));
+                self.tmax[c] = S::blend(outside, tm, S::splat(f32::INFINITY));
+            }
+            // Past the walk's end with no run: over.
+            let stop = S::but(S::and(m, S::ge(ta, self.t_stop)), self.cur_ok);
+            self.ended = S::or(self.ended, stop);
+            fin = S::or(fin, stop);
+            m = S::but(m, stop);
+            let e = S::positive(S::gather::<4>(self.p.empty.as_ptr(), b));
+            let skip = if self.p.skip_empty { e } else { none };
+            // A skipped block with no run before it changes nothing.
+            let mut go = S::but(m, S::but(skip, self.cur_ok));
+            if S::bits(go) == 0 {
+                continue;
+            }
+            let (j, cap) = self.rule(b, ta, tb, e);
+            let li = j - S::splat(self.p.lo as f32);
+            let s = self.step(li);
+            let n0 = S::max(S::ceil((ta - self.t0) / s), zero);
+            let n1 = S::max(S::ceil((tb - self.t0) / s), zero);
+            go = S::and(go, S::gt(n1, n0));
+            let blk: Run<S> = [li, n0, n1, cap];
+            // The block extends the current run.
+            if !self.p.per_block {
+                let merge = S::and(
+                    S::but(S::and(go, self.cur_ok), skip),
+                    S::and(S::eq(self.cur[0], li), S::eq(self.cur[2], n0)),
+                );
+                self.cur[2] = S::blend(merge, self.cur[2], n1);
+                go = S::but(go, merge);
+            }
+            // Or ends it: the run is handed out, the block held.
+            let hand = S::and(go, self.cur_ok);
+            for (c, b) in blk.into_iter().enumerate() {
+                out[c] = S::blend(hand, out[c], self.cur[c]);
+                self.held[c] = S::blend(hand, self.held[c], b);
+            }
+            self.held_ok = S::or(self.held_ok, hand);
+            self.held_skip = S::or(S::and(hand, skip), S::but(self.held_skip, hand));
+            found = S::or(found, hand);
+            m = S::but(m, hand);
+            // Or starts one.
+            let start = S::but(S::but(go, self.cur_ok), skip);
+            for (c, b) in self.cur.iter_mut().zip(blk) {
+                *c = S::blend(start, *c, b);
+            }
+            self.cur_ok = S::or(S::but(self.cur_ok, hand), start);
+        }
+        // Finished walks: the pending sample's stretch runs to the exit.
+        let mut ended = none;
+        if S::bits(fin) != 0 {
+            let d = flush_lanes(pk, fin, self.t_end, true, rr, col);
+            dead = S::or(dead, d);
+            ended = S::but(fin, d);
+        }
+        // Each pending sample is now composited.
+        rr.pend_ok = S::but(rr.pend_ok, need);
+        // The runs handed out.
+        *kv = S::blend(found, *kv, out[1]);
+        rr.kend = S::blend(found, rr.kend, out[2]);
+        rr.stv = S::blend(found, rr.stv, self.step(S::keep(found, out[0])));
+        let off = S::mullo(S::to_i(out[0]), S::splat_i((LUT_SIZE * 4) as i32));
+        rr.offv = S::blend_i(found, rr.offv, off);
+        rr.capv = S::blend(found, rr.capv, out[3]);
+        rr.fresh = S::or(rr.fresh, found);
+        (ended, dead)
+    }
+}
+
+/// The lanes of `m` composite their pending sample (`rr`'s, which they no
+/// longer hold) into `col` over its stretch up to `t_next` (past the
+/// sample where `to_exit`); returns those that terminated.
+#[inline(always)]
+unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
+    pk: &Packets<'_, T, R>,
+    m: S::M,
+    t_next: S::F,
+    to_exit: bool,
+    rr: &mut RunRegs<S>,
+    col: &mut [S::F; 4],
+) -> S::M {
+    let bits = S::bits(S::and(m, rr.pend_ok));
+    rr.pend_ok = S::but(rr.pend_ok, m);
+    if bits == 0 {
+        return S::from_bits(0);
+    }
+    let mut c4 = col.map(|v| S::store(v));
+    let pend = rr.pend.map(|v| S::store(v));
+    let idx = S::store_i(rr.pend_idx);
+    let tn = S::store(t_next);
+    let mut dead = 0u32;
+    for i in 0..S::N {
+        if (bits >> i) & 1 == 0 {
+            continue;
+        }
+        let p = Pending {
+            t: pend[4][i],
+            entry: idx[i] as usize,
+            e: Vec3::new(pend[0][i], pend[1][i], pend[2][i]),
+            a: pend[3][i],
+        };
+        let acc = Vec4::new(c4[0][i], c4[1][i], c4[2][i], c4[3][i]);
+        let mut c = Front::resume(acc, pk.weights, pk.stop);
+        let t = if to_exit { tn[i].max(p.t) } else { tn[i] };
+        if flush(pk.f, p, t, &mut c) {
+            dead |= 1 << i;
+        }
+        let acc = c.acc();
+        for (k, v) in [acc.x, acc.y, acc.z, acc.w].into_iter().enumerate() {
+            c4[k][i] = v;
+        }
+    }
+    for (v, a) in col.iter_mut().zip(c4) {
+        *v = S::load(a);
+    }
+    S::from_bits(dead)
+}
