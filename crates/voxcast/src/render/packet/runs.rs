@@ -84,7 +84,15 @@ impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
     fn vector(&self) -> Option<VParams<'_>> {
         let st = self.steps;
         let rule = st.rule.vector();
-        (!matches!(rule, VRule::Scalar)).then_some(VParams {
+        // The walk finds a level's sample indices from the finest's: each
+        // step must be the finest times a power of two, as `Tables` makes
+        // them.
+        let doubling = st
+            .level_steps
+            .iter()
+            .enumerate()
+            .all(|(li, &s)| li < 16 && s == st.level_steps[0] * (1u32 << li) as f32);
+        (doubling && !matches!(rule, VRule::Scalar)).then_some(VParams {
             rule,
             lo: st.level_lo,
             hi: st.level_hi,

@@ -48,6 +48,9 @@ pub(super) struct VWalk<'a, S: Simd> {
     blk: [S::I; 3],
     tmax: [S::F; 3],
     t: S::F,
+    /// `(t − t₀)/s₀`, `s₀` the finest level's step: a sample index on
+    /// that level's grid, for the blocks' first and end samples.
+    q: S::F,
     t_out: S::F,
     t_stop: S::F,
     t_end: S::F,
@@ -70,8 +73,11 @@ pub(super) struct VWalk<'a, S: Simd> {
     last: [S::I; 3],
     ncx: S::I,
     ncy: S::I,
-    /// `2^j` per level index.
-    pow2: [f32; 16],
+    /// Per level index `li` (level `j = lo + li`): `2^−j` (for the group
+    /// cap) and `2^−li` (from `q` to the level's sample index).
+    inv_pow2: [f32; 16],
+    inv_rel: [f32; 16],
+    s0: S::F,
 }
 
 /// Level index, first and end sample and group cap of a block or run.
@@ -123,16 +129,20 @@ impl<'a, S: Simd> VWalk<'a, S> {
             let down = S::lt(d[c], zero);
             S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
         });
-        let mut pow2 = [0.0f32; 16];
-        for (li, v) in pow2.iter_mut().enumerate() {
-            *v = 2f32.powi((p.lo + li as i32).clamp(-126, 127));
+        let (mut inv_pow2, mut inv_rel) = ([0.0f32; 16], [0.0f32; 16]);
+        for li in 0..16 {
+            inv_pow2[li] = 2f32.powi(-(p.lo + li as i32).clamp(-126, 126));
+            inv_rel[li] = 2f32.powi(-(li as i32));
         }
+        let s0 = S::splat(p.steps[0]);
+        let t = S::load(a[3]);
         let z = [zero; 4];
         VWalk {
             p,
             blk: [S::load_i(bi[0]), S::load_i(bi[1]), S::load_i(bi[2])],
             tmax: [S::load(a[0]), S::load(a[1]), S::load(a[2])],
-            t: S::load(a[3]),
+            t,
+            q: (t - t0) / s0,
             t_out: S::load(a[4]),
             t_stop: S::load(a[5]),
             t_end: S::load(a[6]),
@@ -152,7 +162,9 @@ impl<'a, S: Simd> VWalk<'a, S> {
             last: counts.map(|n| S::splat_i(n as i32 - 1)),
             ncx: S::splat_i(counts[0] as i32),
             ncy: S::splat_i(counts[1] as i32),
-            pow2,
+            inv_pow2,
+            inv_rel,
+            s0,
         }
     }
 
@@ -202,8 +214,9 @@ impl<'a, S: Simd> VWalk<'a, S> {
                 let x = k_ref / (k * (self.t_out / tm));
                 let j = self.level(x);
                 let li = S::to_i(j - S::splat(self.p.lo as f32));
-                let p2 = S::gather_f::<4>(self.pow2.as_ptr(), li);
-                let cap = S::min(S::max(S::floor(x / p2), S::splat(1.0)), three);
+                // `x / 2^j`, exactly.
+                let p2 = S::gather_f::<4>(self.inv_pow2.as_ptr(), li);
+                let cap = S::min(S::max(S::floor(x * p2), S::splat(1.0)), three);
                 let none = S::ge(zero, k);
                 (S::blend(none, j, hi), S::blend(none, cap, three))
             }
@@ -283,6 +296,8 @@ impl<'a, S: Simd> VWalk<'a, S> {
             let [bx, by, bz] = self.blk;
             let b = S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)));
             self.t = S::blend(m, self.t, tb);
+            let (qa, qb) = (self.q, (tb - self.t0) / self.s0);
+            self.q = S::blend(m, self.q, qb);
             for (c, axc) in ax.into_iter().enumerate() {
                 let mc = S::and(m, axc);
                 let nb = S::blend_i(mc, self.blk[c], self.blk[c] + self.sgn[c]);
@@ -313,9 +328,12 @@ impl<'a, S: Simd> VWalk<'a, S> {
             }
             let (j, cap) = self.rule(b, ta, tb, e);
             let li = j - S::splat(self.p.lo as f32);
-            let s = self.step(li);
-            let n0 = S::max(S::ceil((ta - self.t0) / s), zero);
-            let n1 = S::max(S::ceil((tb - self.t0) / s), zero);
+            // `⌈(t − t₀)/s⌉` at the block's ends, `s = s₀·2^li`: the
+            // same roundings as dividing by `s` (a power of two scales
+            // exactly), one division per block, not two.
+            let r = S::gather_f::<4>(self.inv_rel.as_ptr(), S::to_i(li));
+            let n0 = S::max(S::ceil(qa * r), zero);
+            let n1 = S::max(S::ceil(qb * r), zero);
             go = S::and(go, S::gt(n1, n0));
             let blk: Run<S> = [li, n0, n1, cap];
             // The block extends the current run.
