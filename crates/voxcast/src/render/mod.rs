@@ -578,12 +578,23 @@ impl Job<'_> {
                 .iter()
                 .flat_map(|q| q.iter().copied())
                 .collect();
-            let empty: Vec<i32> = f.empty.iter().map(|&e| e as i32).collect();
+            // Per block the rule's `k`, −1 where empty (the vector walk's
+            // one gather per block).
+            let k = match m.rule.vector() {
+                march::VRule::Max(k) | march::VRule::Classified(k) => k,
+                _ => &[],
+            };
+            let k: Vec<f32> = (0..f.empty.len())
+                .map(|b| match f.empty[b] {
+                    true => -1.0,
+                    false => k.get(b).copied().unwrap_or(0.0),
+                })
+                .collect();
             let runs = packet::Adapt {
                 steps: m,
                 tables: &tables,
                 grouped: self.params.grouped,
-                empty: &empty,
+                k: &k,
                 skip_empty: f.skip_empty,
             };
             if let Some(out) = self.packets(f, t, None, Some(&runs)) {

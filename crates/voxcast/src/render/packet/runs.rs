@@ -60,9 +60,9 @@ pub(in crate::render) struct Adapt<'a, L> {
     pub steps: &'a Steps<'a, L>,
     pub tables: &'a [[f32; 4]],
     pub grouped: bool,
-    /// Each block's emptiness (0 or 1), for the vector walk; the frame's
-    /// `skip_empty`.
-    pub empty: &'a [i32],
+    /// For the vector walk: per block the rule's `k`, or −1 where the
+    /// block is empty ([`VParams::k`]); the frame's `skip_empty`.
+    pub k: &'a [f32],
     pub skip_empty: bool,
 }
 
@@ -98,7 +98,7 @@ impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
             hi: st.level_hi,
             steps: st.level_steps,
             k_ref: st.k_ref,
-            empty: self.empty,
+            k: self.k,
             skip_empty: self.skip_empty,
             per_block: self.grouped,
         })

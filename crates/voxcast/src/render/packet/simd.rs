@@ -53,6 +53,8 @@ pub(super) trait Simd: Copy {
     unsafe fn to_f(a: Self::I) -> Self::F;
     /// The float's bits, reinterpreted.
     unsafe fn as_bits(a: Self::F) -> Self::I;
+    /// The float of these bits.
+    unsafe fn of_bits(a: Self::I) -> Self::F;
     unsafe fn mullo(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn min_i(a: Self::I, b: Self::I) -> Self::I;
     unsafe fn max_i(a: Self::I, b: Self::I) -> Self::I;

@@ -31,8 +31,10 @@ pub(in crate::render) struct VParams<'a> {
     pub hi: i32,
     pub steps: &'a [f32],
     pub k_ref: f32,
-    /// Each block's emptiness under the transfer function, as 0 or 1.
-    pub empty: &'a [i32],
+    /// Per block, the rule's `k` (0 for [`VRule::Fixed`]), or −1 where
+    /// the block is empty under the transfer function: one gather per
+    /// block.
+    pub k: &'a [f32],
     /// Skipping empty blocks; a run per block (grouped reuse).
     pub skip_empty: bool,
     pub per_block: bool,
@@ -73,10 +75,6 @@ pub(super) struct VWalk<'a, S: Simd> {
     last: [S::I; 3],
     ncx: S::I,
     ncy: S::I,
-    /// Per level index `li` (level `j = lo + li`): `2^−j` (for the group
-    /// cap) and `2^−li` (from `q` to the level's sample index).
-    inv_pow2: [f32; 16],
-    inv_rel: [f32; 16],
     s0: S::F,
 }
 
@@ -129,11 +127,6 @@ impl<'a, S: Simd> VWalk<'a, S> {
             let down = S::lt(d[c], zero);
             S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
         });
-        let (mut inv_pow2, mut inv_rel) = ([0.0f32; 16], [0.0f32; 16]);
-        for li in 0..16 {
-            inv_pow2[li] = 2f32.powi(-(p.lo + li as i32).clamp(-126, 126));
-            inv_rel[li] = 2f32.powi(-(li as i32));
-        }
         let s0 = S::splat(p.steps[0]);
         let t = S::load(a[3]);
         let z = [zero; 4];
@@ -162,8 +155,6 @@ impl<'a, S: Simd> VWalk<'a, S> {
             last: counts.map(|n| S::splat_i(n as i32 - 1)),
             ncx: S::splat_i(counts[0] as i32),
             ncy: S::splat_i(counts[1] as i32),
-            inv_pow2,
-            inv_rel,
             s0,
         }
     }
@@ -193,30 +184,25 @@ impl<'a, S: Simd> VWalk<'a, S> {
     }
 
     /// The level `j` (a float) and group cap (at most 3) of the lanes'
-    /// blocks `b` (indices, zero in idle lanes), crossed over `ta..tb`,
-    /// `e` the empty ones: [`crate::render::march::Level::level`] of the
-    /// rule.
+    /// blocks with `k` (see [`VParams::k`]) crossed over `ta..tb`, `e` the
+    /// empty ones: [`crate::render::march::Level::level`] of the rule.
     #[inline(always)]
-    unsafe fn rule(&self, b: S::I, ta: S::F, tb: S::F, e: S::M) -> (S::F, S::F) {
+    unsafe fn rule(&self, k: S::F, ta: S::F, tb: S::F, e: S::M) -> (S::F, S::F) {
         let (hi, three) = (S::splat(self.p.hi as f32), S::splat(3.0));
         let tm = S::max(S::splat(0.5) * (ta + tb), S::splat(1e-6));
         let k_ref = S::splat(self.p.k_ref);
         let zero = S::splat(0.0);
         let (j, cap) = match self.p.rule {
             VRule::Fixed => return (zero, three),
-            VRule::Max(k) => {
-                let k = S::gather_f::<4>(k.as_ptr(), b);
+            VRule::Max(_) => {
                 let f = k * self.t_out / tm;
                 (S::blend(S::gt(f, zero), hi, self.level(k_ref / f)), three)
             }
-            VRule::Classified(k) => {
-                let k = S::gather_f::<4>(k.as_ptr(), b);
+            VRule::Classified(_) => {
                 let x = k_ref / (k * (self.t_out / tm));
                 let j = self.level(x);
-                let li = S::to_i(j - S::splat(self.p.lo as f32));
                 // `x / 2^j`, exactly.
-                let p2 = S::gather_f::<4>(self.inv_pow2.as_ptr(), li);
-                let cap = S::min(S::max(S::floor(x * p2), S::splat(1.0)), three);
+                let cap = S::min(S::max(S::floor(x * pow2::<S>(zero - j)), S::splat(1.0)), three);
                 let none = S::ge(zero, k);
                 (S::blend(none, j, hi), S::blend(none, cap, three))
             }
@@ -319,19 +305,20 @@ impl<'a, S: Simd> VWalk<'a, S> {
             self.ended = S::or(self.ended, stop);
             fin = S::or(fin, stop);
             m = S::but(m, stop);
-            let e = S::positive(S::gather::<4>(self.p.empty.as_ptr(), b));
+            let k = S::gather_f::<4>(self.p.k.as_ptr(), b);
+            let e = S::lt(k, zero);
             let skip = if self.p.skip_empty { e } else { none };
             // A skipped block with no run before it changes nothing.
             let mut go = S::but(m, S::but(skip, self.cur_ok));
             if S::bits(go) == 0 {
                 continue;
             }
-            let (j, cap) = self.rule(b, ta, tb, e);
+            let (j, cap) = self.rule(k, ta, tb, e);
             let li = j - S::splat(self.p.lo as f32);
             // `⌈(t − t₀)/s⌉` at the block's ends, `s = s₀·2^li`: the
             // same roundings as dividing by `s` (a power of two scales
             // exactly), one division per block, not two.
-            let r = S::gather_f::<4>(self.inv_rel.as_ptr(), S::to_i(li));
+            let r = pow2::<S>(zero - li);
             let n0 = S::max(S::ceil(qa * r), zero);
             let n1 = S::max(S::ceil(qb * r), zero);
             go = S::and(go, S::gt(n1, n0));
@@ -381,6 +368,12 @@ impl<'a, S: Simd> VWalk<'a, S> {
         rr.fresh = S::or(rr.fresh, found);
         (ended, dead)
     }
+}
+
+/// `2^j` for whole `j` (−126…127), exactly, from its bits.
+#[inline(always)]
+unsafe fn pow2<S: Simd>(j: S::F) -> S::F {
+    S::of_bits(S::sll(S::to_i(j) + S::splat_i(127), 23))
 }
 
 /// The lanes of `m` composite their pending sample (`rr`'s, which they no

@@ -137,6 +137,10 @@ impl Simd for W16 {
         a
     }
     #[inline(always)]
+    unsafe fn of_bits(a: I16) -> F16 {
+        F16(_mm512_castsi512_ps(a.0))
+    }
+    #[inline(always)]
     unsafe fn as_bits(a: F16) -> I16 {
         I16(_mm512_castps_si512(a.0))
     }

@@ -175,6 +175,10 @@ impl Simd for W8 {
         a
     }
     #[inline(always)]
+    unsafe fn of_bits(a: I8) -> F8 {
+        F8(_mm256_castsi256_ps(a.0))
+    }
+    #[inline(always)]
     unsafe fn as_bits(a: F8) -> I8 {
         I8(_mm256_castps_si256(a.0))
     }
