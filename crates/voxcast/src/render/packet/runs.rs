@@ -1,8 +1,11 @@
 //! The step-per-block marchers in the packets — `adaptive`, `adaptive-s0`,
 //! `adaptive-max`, and any of them or `uniform` with S0's grouped reuse:
-//! each lane walks its blocks in scalar code with a [`RunWalk`] (once per
-//! run of blocks sharing a step, not per sample), and the vector loop
-//! marches the run's samples with the lane's step and its level's table.
+//! each lane walks its blocks as a [`RunWalk`] does (once per run of blocks
+//! sharing a step, not per sample) — in vector registers together with the
+//! other lanes where the rule's level is a table lookup
+//! ([`super::vwalk`]), in scalar code with its `RunWalk` for
+//! `adaptive-s0` — and the vector loop marches the run's samples with the
+//! lane's step and its level's table.
 //! The last sample of a run waits, as in [`Steps::march`], until the walk
 //! knows where its stretch ends; the walk composites it.
 

@@ -202,7 +202,10 @@ impl<'a, S: Simd> VWalk<'a, S> {
                 let x = k_ref / (k * (self.t_out / tm));
                 let j = self.level(x);
                 // `x / 2^j`, exactly.
-                let cap = S::min(S::max(S::floor(x * pow2::<S>(zero - j)), S::splat(1.0)), three);
+                let cap = S::min(
+                    S::max(S::floor(x * pow2::<S>(zero - j)), S::splat(1.0)),
+                    three,
+                );
                 let none = S::ge(zero, k);
                 (S::blend(none, j, hi), S::blend(none, cap, three))
             }
