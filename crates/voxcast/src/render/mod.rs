@@ -579,23 +579,27 @@ impl Job<'_> {
                 .flat_map(|q| q.iter().copied())
                 .collect();
             // Per block the rule's `k`, −1 where empty (the vector walk's
-            // one gather per block).
-            let k = match m.rule.vector() {
-                march::VRule::Max(k) | march::VRule::Classified(k) => k,
-                _ => &[],
+            // one gather per block); none for a rule it cannot walk.
+            let k: Vec<f32> = match m.rule.vector() {
+                march::VRule::Scalar => Vec::new(),
+                rule => {
+                    let k = match rule {
+                        march::VRule::Max(k) | march::VRule::Classified(k) => k,
+                        _ => &[],
+                    };
+                    let k_of = |(b, &e): (usize, &bool)| match e {
+                        true => -1.0,
+                        false => k.get(b).copied().unwrap_or(0.0),
+                    };
+                    f.empty.iter().enumerate().map(k_of).collect()
+                }
             };
-            let k: Vec<f32> = (0..f.empty.len())
-                .map(|b| match f.empty[b] {
-                    true => -1.0,
-                    false => k.get(b).copied().unwrap_or(0.0),
-                })
-                .collect();
+            let grouped = self.params.grouped;
             let runs = packet::Adapt {
                 steps: m,
                 tables: &tables,
-                grouped: self.params.grouped,
-                k: &k,
-                skip_empty: f.skip_empty,
+                grouped,
+                vector: packet::Adapt::vector_params(m, &k, f.skip_empty, grouped),
             };
             if let Some(out) = self.packets(f, t, None, Some(&runs)) {
                 return out;

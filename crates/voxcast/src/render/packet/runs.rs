@@ -63,10 +63,41 @@ pub(in crate::render) struct Adapt<'a, L> {
     pub steps: &'a Steps<'a, L>,
     pub tables: &'a [[f32; 4]],
     pub grouped: bool,
-    /// For the vector walk: per block the rule's `k`, or −1 where the
-    /// block is empty ([`VParams::k`]); the frame's `skip_empty`.
-    pub k: &'a [f32],
-    pub skip_empty: bool,
+    /// What the lanes' vector walk reads ([`Adapt::vector_params`]), or
+    /// `None` where they walk in scalar code.
+    pub vector: Option<VParams<'a>>,
+}
+
+impl<'a, L: Level> Adapt<'a, L> {
+    /// The vector walk's parameters of march `steps` with `k` per block
+    /// (the rule's, −1 where empty: [`VParams::k`]), or `None` where the
+    /// lanes must walk in scalar code: a rule that is not a table lookup
+    /// (`adaptive-s0`), or steps that are not the finest times powers of
+    /// two (the walk finds a level's sample indices from the finest's, as
+    /// `Tables` makes them).
+    pub fn vector_params(
+        steps: &'a Steps<'a, L>,
+        k: &'a [f32],
+        skip_empty: bool,
+        grouped: bool,
+    ) -> Option<VParams<'a>> {
+        let rule = steps.rule.vector();
+        let doubling = steps
+            .level_steps
+            .iter()
+            .enumerate()
+            .all(|(li, &s)| li < 16 && s == steps.level_steps[0] * (1u32 << li) as f32);
+        (doubling && !matches!(rule, VRule::Scalar)).then_some(VParams {
+            rule,
+            lo: steps.level_lo,
+            hi: steps.level_hi,
+            steps: steps.level_steps,
+            k_ref: steps.k_ref,
+            k,
+            skip_empty,
+            per_block: grouped,
+        })
+    }
 }
 
 impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
@@ -85,26 +116,7 @@ impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
         w.next(self.steps, f, self.grouped, c, n)
     }
     fn vector(&self) -> Option<VParams<'_>> {
-        let st = self.steps;
-        let rule = st.rule.vector();
-        // The walk finds a level's sample indices from the finest's: each
-        // step must be the finest times a power of two, as `Tables` makes
-        // them.
-        let doubling = st
-            .level_steps
-            .iter()
-            .enumerate()
-            .all(|(li, &s)| li < 16 && s == st.level_steps[0] * (1u32 << li) as f32);
-        (doubling && !matches!(rule, VRule::Scalar)).then_some(VParams {
-            rule,
-            lo: st.level_lo,
-            hi: st.level_hi,
-            steps: st.level_steps,
-            k_ref: st.k_ref,
-            k: self.k,
-            skip_empty: self.skip_empty,
-            per_block: self.grouped,
-        })
+        self.vector
     }
 }
 

@@ -24,6 +24,7 @@ use crate::volume::Voxel;
 use glam::{Vec3, Vec4};
 
 /// What the vector walk reads of a step-per-block march.
+#[derive(Clone, Copy)]
 pub(in crate::render) struct VParams<'a> {
     pub rule: VRule<'a>,
     /// The levels `lo..=hi` and their steps (world units).
