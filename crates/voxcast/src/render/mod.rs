@@ -625,7 +625,6 @@ impl Job<'_> {
         if (p.grouped && runs.is_none())
             || shading.is_some_and(|bp| !packet::shades(&bp))
             || p.order != Order::FrontToBack
-            || self.surface.is_some()
             || !packet::fits(f.grid)
         {
             return None;
@@ -653,6 +652,7 @@ impl Job<'_> {
             level,
             imp,
             runs,
+            surface: self.surface,
         };
         let (passes, bg) = (self.passes(), self.background());
         // A packet is a square of 4×4 pixels (of a 16×16 tile): its rays

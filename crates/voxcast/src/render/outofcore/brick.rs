@@ -402,6 +402,7 @@ fn march_rows<T: Stored>(
         level,
         imp: None,
         runs: None,
+        surface: None,
     };
     rows.map(|row| {
         let mut n = RowCount::default();

@@ -76,6 +76,7 @@ impl<T: Voxel, R: super::Runs<T>> Packets<'_, T, R> {
     pub(super) fn imp_lane(
         &self,
         ray: (Vec3, Vec3),
+        limit: f32,
         pixel: (u32, u32),
         pass: u32,
         stats: &mut RenderStats,
@@ -87,7 +88,7 @@ impl<T: Voxel, R: super::Runs<T>> Packets<'_, T, R> {
             t_in,
             t_out,
             walk,
-        } = self.setup(ray, stats)?;
+        } = self.setup(ray, limit, stats)?;
         let walker = BlockWalker::new(o, d, walk.0, walk.1, f.block_size, f.block_counts).staying();
         let xi = crate::render::rng::pixel_sequence(f.seed, pixel.0, pixel.1, pass);
         // No jitter offset: the stretches end at the exit.

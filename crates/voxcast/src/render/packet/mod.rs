@@ -44,6 +44,7 @@ use super::ray::{Counters, Frame};
 use super::sample::{evaluate_premul, Flat, Phong};
 use super::shading::BlinnPhong;
 use super::stats::RenderStats;
+use super::surface::{self, SurfaceCtx};
 mod distance;
 mod importance;
 mod runs;
@@ -181,6 +182,10 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub imp: Option<Imp<'a>>,
     /// A step-per-block march, when the packets march one.
     pub runs: Option<&'a R>,
+    /// Opaque geometry the rays stop at (S0 Fig. 9–13): a lane's ray ends
+    /// at its first hit, and the surface's lit colour is composited
+    /// behind what it gathered, as [`super::trace::trace`] does.
+    pub surface: Option<SurfaceCtx<'a>>,
 }
 
 /// Whether the packets can shade with `bp`: the specular power is taken by
@@ -266,15 +271,26 @@ struct Setup {
 }
 
 impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
-    /// Sets up the ray `(origin, unit direction)` in world units, counting
-    /// it; `None` when it misses the volume or meets only empty blocks.
-    fn setup(&self, (origin, dir): (Vec3, Vec3), stats: &mut RenderStats) -> Option<Setup> {
+    /// Sets up the ray `(origin, unit direction)` in world units, ending
+    /// at `limit` (its first opaque surface, or ∞), counting it; `None`
+    /// when it misses the volume, meets the surface first or meets only
+    /// empty blocks.
+    fn setup(
+        &self,
+        (origin, dir): (Vec3, Vec3),
+        limit: f32,
+        stats: &mut RenderStats,
+    ) -> Option<Setup> {
         let f = self.f;
         stats.rays += 1;
         let o = (origin - f.origin_w) * f.inv_spacing;
         let d = dir * f.inv_spacing;
         let inv_d = Vec3::ONE / d;
         let (t_in, t_out) = intersect_box(o, inv_d, f.box_lo, f.box_hi)?;
+        if limit <= t_in {
+            return None;
+        }
+        let t_out = t_out.min(limit);
         stats.rays_hit += 1;
         let walk = match f.occupied {
             Some((lo, hi)) => intersect_box(o, inv_d, lo, hi)
@@ -304,10 +320,12 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     }
 
     /// Sets up the ray of pixel `pixel` (`ray`: world origin and unit
-    /// direction), or `None` when it meets nothing to sample.
+    /// direction; ending at `limit`), or `None` when it meets nothing to
+    /// sample.
     fn lane(
         &self,
         ray: (Vec3, Vec3),
+        limit: f32,
         pixel: (u32, u32),
         pass: u32,
         stats: &mut RenderStats,
@@ -318,7 +336,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             t_in,
             t_out,
             walk,
-        } = self.setup(ray, stats)?;
+        } = self.setup(ray, limit, stats)?;
         let t0 = self.grid_start(t_in, pixel, pass);
         let st = self.st;
         let k0 = ((walk.0 - t0) / st).ceil().max(0.0) as u32;
@@ -359,20 +377,36 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut lanes = [None; LANES];
         let mut imp: [Option<ImpLane>; LANES] = std::array::from_fn(|_| None);
         let mut runs: [Option<RunWalk>; LANES] = std::array::from_fn(|_| None);
+        // Each lane's first opaque surface, lit (its colour is composited
+        // behind the lane's samples).
+        let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
+            let mut limit = f32::INFINITY;
+            if let Some(s) = &self.surface {
+                if let Some(h) = s.geometry.hit(r.0, r.1, 0.0, f32::INFINITY) {
+                    let f = self.f;
+                    let rgb = surface::shade(f, s, r.0, r.1, &h, &mut stats.interpolations);
+                    behind[i] = Some(rgb);
+                    limit = h.t;
+                }
+            }
             lanes[i] = if R::ON {
-                self.run_lane(r, pixel, pass, stats).map(|(l, w)| {
+                self.run_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                     runs[i] = Some(w);
                     l
                 })
             } else if self.imp.is_some() {
-                self.imp_lane(r, pixel, pass, stats).map(|(l, w)| {
+                self.imp_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                     imp[i] = Some(w);
                     l
                 })
             } else {
-                self.lane(r, pixel, pass, stats)
+                self.lane(r, limit, pixel, pass, stats)
             };
+            // A ray with nothing to sample shows its surface alone.
+            if let (None, Some(rgb)) = (lanes[i], behind[i]) {
+                out[i] += rgb.extend(1.0);
+            }
         }
         if lanes.iter().all(Option::is_none) {
             return;
@@ -410,6 +444,9 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             n.interpolations += count[i][2] as u64;
             n.shaded += count[i][1] as u64;
             stats.early_terminated += terminated as u64;
+            if let Some(rgb) = behind[i] {
+                over_front(&mut c, &mut a, rgb, 1.0);
+            }
             out[i] += c.extend(a);
         }
         stats.samples += n.samples + walk.samples;

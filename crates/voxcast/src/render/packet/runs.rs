@@ -127,6 +127,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     pub(super) fn run_lane(
         &self,
         ray: (Vec3, Vec3),
+        limit: f32,
         pixel: (u32, u32),
         pass: u32,
         stats: &mut RenderStats,
@@ -138,7 +139,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             t_in,
             t_out,
             walk,
-        } = self.setup(ray, stats)?;
+        } = self.setup(ray, limit, stats)?;
         let t0 = self.grid_start(t_in, pixel, pass);
         let seg = Segment {
             o,
