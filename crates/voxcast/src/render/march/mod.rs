@@ -18,7 +18,8 @@ mod threshold;
 #[cfg(test)]
 pub(super) use steps::{classified_level, round_log2};
 pub(super) use steps::{
-    flush, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
+    flush, stretch_alpha, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk,
+    Steps, VRule,
 };
 pub(super) use threshold::Threshold;
 

@@ -227,12 +227,19 @@ pub(in crate::render) fn flush<T, C: Composite>(
     t_next: f32,
     c: &mut C,
 ) -> bool {
+    let alpha = stretch_alpha(f, &p, t_next);
+    alpha > 0.0 && c.add_premul(p.e * (alpha / p.a), alpha)
+}
+
+/// The opacity of `p` over the stretch up to `t_next` ([`flush`]); 0
+/// where its sample is transparent.
+#[inline(always)]
+pub(in crate::render) fn stretch_alpha<T>(f: &Frame<'_, T>, p: &Pending, t_next: f32) -> f32 {
     if p.a <= 0.0 {
-        return false;
+        return 0.0;
     }
     let ds = t_next - p.t;
-    let alpha = 1.0 - (-f.lut.sigma(p.entry) * ds / f.unit).exp();
-    alpha > 0.0 && c.add_premul(p.e * (alpha / p.a), alpha)
+    1.0 - (-f.lut.sigma(p.entry) * ds / f.unit).exp()
 }
 
 impl<L> Steps<'_, L> {

@@ -10,8 +10,12 @@
 //! full vector shades them and adds each to its own lane's colour. In
 //! the lock-step loop the visible lanes of an iteration are about half
 //! of them (54 % on the teapot CT); the queue makes every shading lane
-//! count. Used where the colour is only summed (not by the step-per-block
-//! marches, which keep a shaded sample for reuse).
+//! count. The step-per-block marches composite a sample's colour at more
+//! than one step (S0's grouped reuse; a run's last sample, scaled once its
+//! stretch is known): there each lane's last evaluated sample waits in a
+//! slot (`walk::RunRegs::slot`) that sums its weights, and goes to the
+//! queue when the lane evaluates its next one. Their scalar walk
+//! (`adaptive-s0`) composites a run's end itself and shades at once.
 
 use super::simd::Simd;
 use super::LANES;

@@ -5,7 +5,7 @@
 use super::shade::{Deferred, Light};
 use super::simd::{Simd, W16, W8};
 use super::vwalk::{Rays, VWalk};
-use super::walk::{walk_imp, walk_runs, ImpState, RunRegs};
+use super::walk::{walk_imp, walk_runs, ImpState, RunRegs, SLOT_AL, SLOT_P, SLOT_Q, SLOT_W};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::{Voxel, VoxelKind};
 use glam::Vec4;
@@ -386,7 +386,6 @@ unsafe fn march<
     // For the skips' exits: no division in the loop.
     let inv_d = [one / d[0], one / d[1], one / d[2]];
     let inv_st = S::splat(1.0 / pk.st);
-    let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]));
     // The lanes' block walks in vector registers, where the rule allows.
     let mut vw = match pk.runs.and_then(|r| r.vector()) {
         Some(p) if R::ON => Some(VWalk::<S>::new(
@@ -398,6 +397,14 @@ unsafe fn march<
         )),
         _ => None,
     };
+    // Shading: deferred where the colour is only summed (see `shade`):
+    // the fixed step's samples go to the queue as they are composited; a
+    // step-per-block march's wait in their lane's slot (a sample's colour
+    // is composited at several steps: reuses, the run's end) when the
+    // walk is the vector one (whose run ends add to the slot).
+    let defer = SHADE && !R::ON;
+    let defer_runs = SHADE && R::ON && vw.is_some();
+    let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]), defer_runs);
     let stv = S::splat(pk.st);
     let top = S::splat((crate::transfer::LUT_SIZE - 1) as f32);
     let half = S::splat(0.5);
@@ -411,9 +418,7 @@ unsafe fn march<
         S::splat(pk.weights.absorption),
     );
     let stop = S::splat(pk.stop);
-    // Shading: deferred where the colour is only summed (see `shade`).
     let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
-    let defer = SHADE && !R::ON;
     let mut dq = Deferred::new();
     // Blocks, for skipping.
     let inv_bs = S::splat(1.0 / f.block_size as f32);
@@ -589,6 +594,9 @@ unsafe fn march<
                         shade_deferred::<S, T>(&mut dq, &vol, &light, view);
                     }
                     cnt_shaded = S::count(cnt_shaded, valid);
+                } else if defer_runs {
+                    // The colour waits in the slot (below), `e` zero.
+                    cnt_shaded = S::count(cnt_shaded, valid);
                 } else {
                     let gr = vol.gradient::<T>(p);
                     let c = light.shade(gr, [qr, qg, qb], al, view);
@@ -603,6 +611,20 @@ unsafe fn march<
                 e = [S::keep(valid, qr), S::keep(valid, qg), S::keep(valid, qb)];
             }
             al = S::keep(valid, al);
+            if defer_runs {
+                // The evaluating lanes' old slots go to the queue, the
+                // new samples take their place.
+                let out = rr.weighty(eval);
+                if S::bits(out) != 0 {
+                    let sl = &rr.slot;
+                    let sp = [sl[SLOT_P], sl[SLOT_P + 1], sl[SLOT_P + 2]];
+                    let sq = [sl[SLOT_Q], sl[SLOT_Q + 1], sl[SLOT_Q + 2]];
+                    if dq.push::<S>(out, sp, sl[SLOT_W], sl[SLOT_AL], sq) {
+                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                    }
+                }
+                rr.replace(eval, p, [qr, qg, qb], al, valid);
+            }
             if GROUPED {
                 // The lanes that evaluated keep their sample for reuse.
                 rr.keep(eval, [e[0], e[1], e[2], al], idx, valid);
@@ -631,6 +653,11 @@ unsafe fn march<
         }
         // Front to back (`over_front` with the optical model's weights).
         let tr = one - col[3];
+        if defer_runs {
+            // The slot's colour is composited here: it gains the weight.
+            let w = &mut rr.slot[SLOT_W];
+            *w = *w + S::keep(valid, we * tr);
+        }
         col[0] = col[0] + e[0] * we * tr;
         col[1] = col[1] + e[1] * we * tr;
         col[2] = col[2] + e[2] * we * tr;
@@ -641,7 +668,17 @@ unsafe fn march<
     if !R::ON {
         cnt_interp = cnt;
     }
-    if defer {
+    if defer_runs {
+        // The samples still in their slots.
+        let out = rr.weighty(S::from_bits(u32::MAX >> (32 - S::N)));
+        let sl = &rr.slot;
+        let sp = [sl[SLOT_P], sl[SLOT_P + 1], sl[SLOT_P + 2]];
+        let sq = [sl[SLOT_Q], sl[SLOT_Q + 1], sl[SLOT_Q + 2]];
+        if dq.push::<S>(out, sp, sl[SLOT_W], sl[SLOT_AL], sq) {
+            shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+        }
+    }
+    if defer || defer_runs {
         while dq.waiting() > 0 {
             shade_deferred::<S, T>(&mut dq, &vol, &light, view);
         }

@@ -15,10 +15,11 @@
 //! [`RunWalk::next`]: crate::render::march::RunWalk::next
 
 use super::simd::Simd;
-use super::walk::RunRegs;
+use super::walk::{RunRegs, SLOT_W};
 use super::{Packets, Runs, State};
 use crate::render::composite::Front;
-use crate::render::march::{flush, Pending, VRule};
+use crate::render::march::{flush, stretch_alpha, Pending, VRule};
+use crate::render::ray::Composite;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::{Vec3, Vec4};
@@ -401,6 +402,7 @@ unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
     let pend = rr.pend.map(|v| S::store(v));
     let idx = S::store_i(rr.pend_idx);
     let tn = S::store(t_next);
+    let mut w = S::store(rr.slot[SLOT_W]);
     let mut dead = 0u32;
     for i in 0..S::N {
         if (bits >> i) & 1 == 0 {
@@ -415,7 +417,17 @@ unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
         let acc = Vec4::new(c4[0][i], c4[1][i], c4[2][i], c4[3][i]);
         let mut c = Front::resume(acc, pk.weights, pk.stop);
         let t = if to_exit { tn[i].max(p.t) } else { tn[i] };
-        if flush(pk.f, p, t, &mut c) {
+        if rr.defer {
+            // The colour waits, unshaded, in the lane's slot: it gains
+            // the weight `flush` would give it; the opacity goes on now.
+            let alpha = stretch_alpha(pk.f, &p, t);
+            if alpha > 0.0 {
+                w[i] += pk.weights.emission * (1.0 - acc.w) * (alpha / p.a);
+                if c.add_premul(Vec3::ZERO, alpha) {
+                    dead |= 1 << i;
+                }
+            }
+        } else if flush(pk.f, p, t, &mut c) {
             dead |= 1 << i;
         }
         let acc = c.acc();
@@ -426,5 +438,6 @@ unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
     for (v, a) in col.iter_mut().zip(c4) {
         *v = S::load(a);
     }
+    rr.slot[SLOT_W] = S::load(w);
     S::from_bits(dead)
 }

@@ -31,13 +31,28 @@ pub(super) struct RunRegs<S: Simd> {
     pub pend: [S::F; 5],
     pub pend_idx: S::I,
     pub pend_ok: S::M,
+    /// Shading deferred ([`super::shade`]): each lane's last evaluated
+    /// sample waits here unshaded — position, premultiplied colour,
+    /// opacity — with the weight its colour has gathered so far (the
+    /// transmittance × emission weight of every step it was composited
+    /// at, reuses and the run's end included); it goes to the queue
+    /// when the lane evaluates its next sample, or at the end.
+    pub defer: bool,
+    pub slot: [S::F; 8],
+    pub slot_ok: S::M,
 }
+
+/// The fields of [`RunRegs::slot`].
+pub(super) const SLOT_P: usize = 0;
+pub(super) const SLOT_Q: usize = 3;
+pub(super) const SLOT_AL: usize = 6;
+pub(super) const SLOT_W: usize = 7;
 
 impl<S: Simd> RunRegs<S> {
     /// Lanes that have no run yet (each fetches its first), with the
     /// group thresholds `th1`, `th2`.
     #[inline(always)]
-    pub unsafe fn new(kend: S::F, th1: S::F, th2: S::F) -> Self {
+    pub unsafe fn new(kend: S::F, th1: S::F, th2: S::F, defer: bool) -> Self {
         let zero = S::splat(0.0);
         RunRegs {
             stv: S::splat(1.0),
@@ -53,7 +68,32 @@ impl<S: Simd> RunRegs<S> {
             pend: [zero; 5],
             pend_idx: S::splat_i(0),
             pend_ok: S::from_bits(0),
+            defer,
+            slot: [zero; 8],
+            slot_ok: S::from_bits(0),
         }
+    }
+
+    /// The lanes of `m` evaluated a sample (position `p`, premultiplied
+    /// colour `q`, opacity `al`, visible where `ok`): it replaces their
+    /// slot, with no weight yet (queue the old ones, [`RunRegs::weighty`],
+    /// first) — see [`RunRegs::defer`].
+    #[inline(always)]
+    pub unsafe fn replace(&mut self, m: S::M, p: [S::F; 3], q: [S::F; 3], al: S::F, ok: S::M) {
+        let v = [p[0], p[1], p[2], q[0], q[1], q[2], al, S::splat(0.0)];
+        for (s, v) in self.slot.iter_mut().zip(v) {
+            *s = S::blend(m, *s, v);
+        }
+        self.slot_ok = S::or(S::and(m, ok), S::but(self.slot_ok, m));
+    }
+
+    /// The lanes of `m` whose slot holds a visible sample with weight.
+    #[inline(always)]
+    pub unsafe fn weighty(&self, m: S::M) -> S::M {
+        S::and(
+            S::and(m, self.slot_ok),
+            S::gt(self.slot[SLOT_W], S::splat(0.0)),
+        )
     }
 
     /// The lanes of `m` keep their evaluated sample `e` (colour,
