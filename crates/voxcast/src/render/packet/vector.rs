@@ -242,6 +242,28 @@ unsafe fn shade_deferred<S: Simd, T: Voxel>(
     dq.add::<S>(&b, e);
 }
 
+/// Queues the slots of lanes `m` (see `RunRegs::defer`), shading a
+/// vector when one is full.
+///
+/// # Safety
+/// The width's instructions; fewer than `S::N` samples waiting.
+#[inline(always)]
+unsafe fn queue_slots<S: Simd, T: Voxel>(
+    dq: &mut Deferred,
+    rr: &RunRegs<S>,
+    m: S::M,
+    vol: &Vol<S>,
+    light: &Light<S>,
+    view: [S::F; 3],
+) {
+    let sl = &rr.slot;
+    let p = [sl[SLOT_P], sl[SLOT_P + 1], sl[SLOT_P + 2]];
+    let q = [sl[SLOT_Q], sl[SLOT_Q + 1], sl[SLOT_Q + 2]];
+    if dq.push::<S>(m, p, sl[SLOT_W], sl[SLOT_AL], q) {
+        shade_deferred::<S, T>(dq, vol, light, view);
+    }
+}
+
 /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
 /// colour and opacity to `st.acc`, its samples, shaded samples and
 /// interpolations to `st.count`, and leaves `st.alive` false for lanes
@@ -616,12 +638,7 @@ unsafe fn march<
                 // new samples take their place.
                 let out = rr.weighty(eval);
                 if S::bits(out) != 0 {
-                    let sl = &rr.slot;
-                    let sp = [sl[SLOT_P], sl[SLOT_P + 1], sl[SLOT_P + 2]];
-                    let sq = [sl[SLOT_Q], sl[SLOT_Q + 1], sl[SLOT_Q + 2]];
-                    if dq.push::<S>(out, sp, sl[SLOT_W], sl[SLOT_AL], sq) {
-                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
-                    }
+                    queue_slots::<S, T>(&mut dq, &rr, out, &vol, &light, view);
                 }
                 rr.replace(eval, p, [qr, qg, qb], al, valid);
             }
@@ -671,12 +688,7 @@ unsafe fn march<
     if defer_runs {
         // The samples still in their slots.
         let out = rr.weighty(S::from_bits(u32::MAX >> (32 - S::N)));
-        let sl = &rr.slot;
-        let sp = [sl[SLOT_P], sl[SLOT_P + 1], sl[SLOT_P + 2]];
-        let sq = [sl[SLOT_Q], sl[SLOT_Q + 1], sl[SLOT_Q + 2]];
-        if dq.push::<S>(out, sp, sl[SLOT_W], sl[SLOT_AL], sq) {
-            shade_deferred::<S, T>(&mut dq, &vol, &light, view);
-        }
+        queue_slots::<S, T>(&mut dq, &rr, out, &vol, &light, view);
     }
     if defer || defer_runs {
         while dq.waiting() > 0 {
