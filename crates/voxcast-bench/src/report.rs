@@ -184,6 +184,8 @@ pub struct RunInfo {
     pub timer: &'static str,
     /// Where the methods were rendered (`cpu`, or the GPU adapter).
     pub device: String,
+    /// The inner loop asked for (`--simd`: `auto`, `avx2`, `scalar`).
+    pub simd: voxcast::render::Simd,
     pub voxcast_version: &'static str,
 }
 

@@ -383,6 +383,7 @@ pub fn run_cancellable(
                 "wall-clock ms around Renderer::render, renderer built once"
             },
             device: methods_on.map_or_else(|| "cpu".to_string(), |m| m.device()),
+            simd: scene.render.simd,
             voxcast_version: env!("CARGO_PKG_VERSION"),
         },
         reference: ReferenceInfo {

@@ -156,7 +156,9 @@ fn preamble(r: &BenchReport) -> Vec<String> {
         .filter(|m| packets_here && m.measured.as_ref().is_some_and(|x| x.simd.is_none()))
         .map(|m| m.name.as_str())
         .collect();
-    if !scalar.is_empty() {
+    if !scalar.is_empty() && r.run.simd == voxcast::render::Simd::Scalar {
+        lines.push("Scalar loop for every method, as asked (--simd scalar).".to_string());
+    } else if !scalar.is_empty() {
         lines.push(format!(
             "Scalar loop (these methods do not run in the SIMD packets yet): {}.",
             scalar.join(", ")
