@@ -595,11 +595,17 @@ impl Job<'_> {
                 }
             };
             let grouped = self.params.grouped;
+            let walk =
+                |f: &Frame<'_, T>,
+                 w: &mut march::RunWalk,
+                 c: &mut composite::Front,
+                 n: &mut ray::Counters| { w.next(m, f, grouped, c, n) };
             let runs = packet::Adapt {
-                steps: m,
+                level_steps: m.level_steps,
                 tables: &tables,
                 grouped,
-                vector: packet::Adapt::vector_params(m, &k, f.skip_empty, grouped),
+                walk: &walk,
+                vector: packet::vector_params(m, &k, f.skip_empty, grouped),
             };
             if let Some(out) = self.packets(f, t, None, Some(&runs)) {
                 return out;

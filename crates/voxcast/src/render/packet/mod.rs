@@ -57,7 +57,7 @@ pub(in crate::render) use distance::{distances_in_place, skip_distances};
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
-pub(in crate::render) use runs::{Adapt, Runs};
+pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
 /// register, AVX2 as two packets of eight.
@@ -511,36 +511,52 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             self.imp.is_some(),
             grouped,
         );
+        // Only the combinations a render can ask for are instantiated:
+        // `Job::packets` skips empty blocks only on the fixed step (no
+        // runs) and groups only in runs; `importance` has no runs. `R::ON`
+        // is known at compile time, so the other branch is not built — a
+        // third fewer copies of the march, which is most of the crate's
+        // build time.
         macro_rules! go {
             ($f:ident) => {
-                match choice {
-                    (false, false, false, false) => {
-                        vector::$f::<T, R, false, false, false, false>(self, lanes, st)
+                if R::ON {
+                    match choice {
+                        (false, false, false, false) => {
+                            vector::$f::<T, R, false, false, false, false>(self, lanes, st)
+                        }
+                        (false, true, false, false) => {
+                            vector::$f::<T, R, false, true, false, false>(self, lanes, st)
+                        }
+                        (false, false, false, true) => {
+                            vector::$f::<T, R, false, false, false, true>(self, lanes, st)
+                        }
+                        (false, true, false, true) => {
+                            vector::$f::<T, R, false, true, false, true>(self, lanes, st)
+                        }
+                        _ => unreachable!("packets: skipping or importance with runs"),
                     }
-                    (true, false, false, false) => {
-                        vector::$f::<T, R, true, false, false, false>(self, lanes, st)
+                } else {
+                    match choice {
+                        (false, false, false, false) => {
+                            vector::$f::<T, R, false, false, false, false>(self, lanes, st)
+                        }
+                        (true, false, false, false) => {
+                            vector::$f::<T, R, true, false, false, false>(self, lanes, st)
+                        }
+                        (false, true, false, false) => {
+                            vector::$f::<T, R, false, true, false, false>(self, lanes, st)
+                        }
+                        (true, true, false, false) => {
+                            vector::$f::<T, R, true, true, false, false>(self, lanes, st)
+                        }
+                        (false, false, true, false) => {
+                            vector::$f::<T, R, false, false, true, false>(self, lanes, st)
+                        }
+                        (false, true, true, false) => {
+                            vector::$f::<T, R, false, true, true, false>(self, lanes, st)
+                        }
+                        _ => unreachable!("packets: grouping without runs"),
                     }
-                    (false, true, false, false) => {
-                        vector::$f::<T, R, false, true, false, false>(self, lanes, st)
-                    }
-                    (true, true, false, false) => {
-                        vector::$f::<T, R, true, true, false, false>(self, lanes, st)
-                    }
-                    (false, false, true, false) => {
-                        vector::$f::<T, R, false, false, true, false>(self, lanes, st)
-                    }
-                    (false, true, true, false) => {
-                        vector::$f::<T, R, false, true, true, false>(self, lanes, st)
-                    }
-                    (false, false, false, true) => {
-                        vector::$f::<T, R, false, false, false, true>(self, lanes, st)
-                    }
-                    (false, true, false, true) => {
-                        vector::$f::<T, R, false, true, false, true>(self, lanes, st)
-                    }
-                    // `Job::packets` skips only on the fixed step, and
-                    // groups only in runs.
-                    _ => unreachable!("packets: skipping with a walk, or grouping without runs"),
                 }
             };
         }

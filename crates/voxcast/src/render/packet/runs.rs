@@ -57,63 +57,69 @@ impl<T: Voxel> Runs<T> for () {
     }
 }
 
-/// A step-per-block march for the packets: the marcher, its levels'
-/// tables end to end, and whether samples are grouped.
-pub(in crate::render) struct Adapt<'a, L> {
-    pub steps: &'a Steps<'a, L>,
+/// The walk of a lane's runs (see [`RunWalk::next`]) of one marcher.
+pub(in crate::render) type WalkFn<'a, T> =
+    dyn Fn(&Frame<'_, T>, &mut RunWalk, &mut Front, &mut Counters) -> Next + Sync + 'a;
+
+/// A step-per-block march for the packets: its levels' steps and tables
+/// end to end, whether samples are grouped, and the lanes' walk of their
+/// runs. The marcher's level rule sits behind `walk`, a `dyn` call once
+/// per run (the scalar walk of `adaptive-s0` only; the vector walk reads
+/// `vector`), so the packets' loop is compiled once for every rule, not
+/// once per rule — the loop is most of the crate's build time.
+pub(in crate::render) struct Adapt<'a, T> {
+    pub level_steps: &'a [f32],
     pub tables: &'a [[f32; 4]],
     pub grouped: bool,
-    /// What the lanes' vector walk reads ([`Adapt::vector_params`]), or
-    /// `None` where they walk in scalar code.
+    pub walk: &'a WalkFn<'a, T>,
+    /// What the lanes' vector walk reads ([`vector_params`]), or `None`
+    /// where they walk in scalar code.
     pub vector: Option<VParams<'a>>,
 }
 
-impl<'a, L: Level> Adapt<'a, L> {
-    /// The vector walk's parameters of march `steps` with `k` per block
-    /// (the rule's, −1 where empty: [`VParams::k`]), or `None` where the
-    /// lanes must walk in scalar code: a rule that is not a table lookup
-    /// (`adaptive-s0`), or steps that are not the finest times powers of
-    /// two (the walk finds a level's sample indices from the finest's, as
-    /// `Tables` makes them).
-    pub fn vector_params(
-        steps: &'a Steps<'a, L>,
-        k: &'a [f32],
-        skip_empty: bool,
-        grouped: bool,
-    ) -> Option<VParams<'a>> {
-        let rule = steps.rule.vector();
-        let doubling = steps
-            .level_steps
-            .iter()
-            .enumerate()
-            .all(|(li, &s)| li < 16 && s == steps.level_steps[0] * (1u32 << li) as f32);
-        (doubling && !matches!(rule, VRule::Scalar)).then_some(VParams {
-            rule,
-            lo: steps.level_lo,
-            hi: steps.level_hi,
-            steps: steps.level_steps,
-            k_ref: steps.k_ref,
-            k,
-            skip_empty,
-            per_block: grouped,
-        })
-    }
+/// The vector walk's parameters of march `steps` with `k` per block
+/// (the rule's, −1 where empty: [`VParams::k`]), or `None` where the
+/// lanes must walk in scalar code: a rule that is not a table lookup
+/// (`adaptive-s0`), or steps that are not the finest times powers of
+/// two (the walk finds a level's sample indices from the finest's, as
+/// `Tables` makes them).
+pub(in crate::render) fn vector_params<'a, L: Level>(
+    steps: &'a Steps<'a, L>,
+    k: &'a [f32],
+    skip_empty: bool,
+    grouped: bool,
+) -> Option<VParams<'a>> {
+    let rule = steps.rule.vector();
+    let doubling = steps
+        .level_steps
+        .iter()
+        .enumerate()
+        .all(|(li, &s)| li < 16 && s == steps.level_steps[0] * (1u32 << li) as f32);
+    (doubling && !matches!(rule, VRule::Scalar)).then_some(VParams {
+        rule,
+        lo: steps.level_lo,
+        hi: steps.level_hi,
+        steps: steps.level_steps,
+        k_ref: steps.k_ref,
+        k,
+        skip_empty,
+        per_block: grouped,
+    })
 }
 
-impl<T: Voxel, L: Level> Runs<T> for Adapt<'_, L> {
+impl<T: Voxel> Runs<T> for Adapt<'_, T> {
     const ON: bool = true;
     fn tables(&self) -> &[[f32; 4]] {
         self.tables
     }
     fn step(&self, li: usize) -> f32 {
-        self.steps.level_steps[li]
+        self.level_steps[li]
     }
     fn grouped(&self) -> bool {
         self.grouped
     }
-    #[inline(always)]
     fn next(&self, f: &Frame<'_, T>, w: &mut RunWalk, c: &mut Front, n: &mut Counters) -> Next {
-        w.next(self.steps, f, self.grouped, c, n)
+        (self.walk)(f, w, c, n)
     }
     fn vector(&self) -> Option<VParams<'_>> {
         self.vector
