@@ -5,7 +5,7 @@
 //! is its own monomorphised loop.
 
 mod common;
-use common::{max_diff, no_progress};
+use common::{max_diff, no_progress, simd_levels};
 
 use voxcast::camera::CameraParams;
 use voxcast::render::{Method, OpticalModel, Order, RenderParams, Renderer, Simd};
@@ -168,20 +168,6 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
         )),
         make(VoxelData::F32(f.clone().into())),
     ]
-}
-
-/// The packet levels this CPU runs (`Simd::Auto` picks the best; `Avx2`
-/// holds it to AVX2), each named once; none without AVX2.
-fn simd_levels() -> Vec<(Simd, &'static str)> {
-    let mut out: Vec<(Simd, &'static str)> = Vec::new();
-    for simd in [Simd::Auto, Simd::Avx2] {
-        if let Some(l) = voxcast::render::simd_level(simd) {
-            if out.iter().all(|(_, n)| *n != l.name()) {
-                out.push((simd, l.name()));
-            }
-        }
-    }
-    out
 }
 
 /// The SIMD packets, at every level this CPU has, against the scalar loop:

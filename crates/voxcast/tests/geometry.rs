@@ -5,7 +5,7 @@
 //! geometry files, scene tables and FDS obstructions load.
 
 mod common;
-use common::{max_diff, no_progress};
+use common::{max_diff, no_progress, simd_levels};
 
 use glam::Vec3;
 use std::path::Path;
@@ -371,10 +371,6 @@ fn packets_stop_at_the_geometry_as_the_scalar_loop_does() {
         ),
     )
     .unwrap();
-    let levels: Vec<Simd> = [Simd::Auto, Simd::Avx2]
-        .into_iter()
-        .filter(|&s| voxcast::render::simd_level(s).is_some())
-        .collect();
     for vol in [vol, f32_vol] {
         let s = vol.stats();
         let r = Renderer::new(&vol, [s.min, s.max])
@@ -406,7 +402,7 @@ fn packets_stop_at_the_geometry_as_the_scalar_loop_does() {
                     max_diff(&scalar, &without) > 0.2,
                     "{spec}: no geometry seen"
                 );
-                for &level in &levels {
+                for (level, _) in simd_levels() {
                     p.simd = level;
                     let (simd, ss) = r.render(&tf, &cam, &p, &no_progress).unwrap();
                     let what =

@@ -18,6 +18,22 @@ pub(super) struct SurfaceCtx<'a> {
     pub shadows: bool,
 }
 
+/// The first opaque surface on the ray `origin + dir·t` (world), if any:
+/// where the ray ends (`t`) and the surface's lit colour ([`shade`],
+/// counting the shadow ray's lookups in `interpolations`) — what
+/// `trace` and the packets composite behind the ray's samples.
+pub(super) fn first_hit<T: Voxel>(
+    ctx: &Frame<'_, T>,
+    s: Option<&SurfaceCtx<'_>>,
+    origin: Vec3,
+    dir: Vec3,
+    interpolations: &mut u64,
+) -> Option<(f32, Vec3)> {
+    let s = s?;
+    let hit = s.geometry.hit(origin, dir, 0.0, f32::INFINITY)?;
+    Some((hit.t, shade(ctx, s, origin, dir, &hit, interpolations)))
+}
+
 /// The lit linear colour of `hit` on the ray `origin + dir·t` (world).
 #[inline]
 pub(super) fn shade<T: Voxel>(

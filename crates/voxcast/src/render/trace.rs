@@ -42,23 +42,24 @@ pub(super) fn trace<T: Voxel, M: Marcher<T>, S: Sampler<T>, O: Order>(
     let o = (origin - f.origin_w) * f.inv_spacing;
     let d = dir * f.inv_spacing;
     // The first opaque surface ends the ray (S0 Fig. 9–13).
-    let hit = tr.surface.and_then(|s| {
-        s.geometry
-            .hit(origin, dir, 0.0, f32::INFINITY)
-            .map(|h| (s, h))
-    });
-    let surface_rgb = |stats: &mut RenderStats| {
-        hit.map(|(s, h)| surface::shade(f, &s, origin, dir, &h, &mut stats.interpolations))
-    };
+    let hit = surface::first_hit(
+        f,
+        tr.surface.as_ref(),
+        origin,
+        dir,
+        &mut stats.interpolations,
+    );
+    let behind = hit.map(|(_, rgb)| rgb);
+    let opaque = || behind.map_or(Vec4::ZERO, |c| c.extend(1.0));
     let inv_d = Vec3::ONE / d;
     let Some((t_in, mut t_out)) = intersect_box(o, inv_d, f.box_lo, f.box_hi) else {
-        return surface_rgb(stats).map_or(Vec4::ZERO, |c| c.extend(1.0));
+        return opaque();
     };
-    if let Some((_, h)) = &hit {
-        if h.t <= t_in {
-            return surface_rgb(stats).map_or(Vec4::ZERO, |c| c.extend(1.0));
+    if let Some((t, _)) = hit {
+        if t <= t_in {
+            return opaque();
         }
-        t_out = t_out.min(h.t);
+        t_out = t_out.min(t);
     }
     stats.rays_hit += 1;
     let t0 = match tr.jitter {
@@ -101,6 +102,5 @@ pub(super) fn trace<T: Voxel, M: Marcher<T>, S: Sampler<T>, O: Order>(
     stats.interpolations += n.interpolations;
     stats.gradient_interpolations += 6 * n.shaded;
     stats.early_terminated += terminated as u64;
-    let behind = surface_rgb(stats);
     c.finish(behind)
 }

@@ -381,15 +381,15 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // behind the lane's samples).
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
-            let mut limit = f32::INFINITY;
-            if let Some(s) = &self.surface {
-                if let Some(h) = s.geometry.hit(r.0, r.1, 0.0, f32::INFINITY) {
-                    let f = self.f;
-                    let rgb = surface::shade(f, s, r.0, r.1, &h, &mut stats.interpolations);
-                    behind[i] = Some(rgb);
-                    limit = h.t;
-                }
-            }
+            let hit = surface::first_hit(
+                self.f,
+                self.surface.as_ref(),
+                r.0,
+                r.1,
+                &mut stats.interpolations,
+            );
+            behind[i] = hit.map(|(_, rgb)| rgb);
+            let limit = hit.map_or(f32::INFINITY, |(t, _)| t);
             lanes[i] = if R::ON {
                 self.run_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                     runs[i] = Some(w);
