@@ -231,7 +231,7 @@ fn lossless_transfer_syntaxes_decode_to_the_uncompressed_voxels() {
     assert_eq!(mr.dims(), [48, 48, 1]);
     assert_eq!(ct.scalar_type(), crate::volume::ScalarType::I16);
     assert!(ct.stats().min < 0.0, "the CT crop is signed");
-    let mut cases = vec![
+    let cases = vec![
         ("mr_jpeg70.dcm", &mr),
         ("mr_j2k90.dcm", &mr),
         ("mr_rle.dcm", &mr),
@@ -240,10 +240,7 @@ fn lossless_transfer_syntaxes_decode_to_the_uncompressed_voxels() {
         ("ct_j2k90.dcm", &ct),
         ("ct_rle.dcm", &ct),
     ];
-    if cfg!(feature = "jpeg-ls") {
-        cases.push(("mr_jls80.dcm", &mr));
-        cases.push(("ct_jls80.dcm", &ct));
-    }
+    // JPEG-LS (feature jpeg-ls): tests/optional.rs.
     for (name, reference) in cases {
         let v = read_alone(name);
         assert_eq!(v.dims(), reference.dims(), "{name}");
@@ -293,10 +290,7 @@ fn lossy_transfer_syntaxes_decode_within_the_codec_error() {
     // decoding of it: the same up to IDCT rounding.
     let dcmtk = read_alone("mr8_jpeg51_dcmdjpeg.dcm");
     cases.push(("mr8_jpeg51.dcm", &dcmtk, 1.0, 0.5));
-    if cfg!(feature = "jpeg-ls") {
-        // Near-lossless with an allowed error of 2.
-        cases.push(("mr_jls81.dcm", &mr, 2.0, 2.0));
-    }
+    // JPEG-LS near-lossless (feature jpeg-ls): tests/optional.rs.
     for (name, reference, max_tol, rms_tol) in cases {
         let v = read_alone(name);
         assert_eq!(v.dims(), reference.dims(), "{name}");
