@@ -19,7 +19,7 @@ cd "$(dirname "$0")"
 
 minutes=${1:-10}
 shift || true
-all=(vdb image_stack fds fds_s3d fds_sf fds_q nifti metaimage vtk obj geometry scene tf nrrd
+all=(vdb image_stack fds fds_s3d fds_sf fds_q nifti metaimage vtk obj geometry scene tf nrrd zarr
     mitsuba_vol raw dicom)
 targets=("$@")
 [ ${#targets[@]} -eq 0 ] && targets=("${all[@]}")

@@ -727,13 +727,79 @@ def text_seeds(c, data):
     )
 
 
+# --------------------------------------------------------------------------
+# OME-Zarr / Zarr stores (the folder's files as parts, paths inside the store)
+
+
+def zarr_v3_store(shape=(4, 4, 4), chunk=(2, 2, 2), levels=2, codec="gzip", dtype="uint8"):
+    """An OME-Zarr 0.5 store (Zarr v3) of `levels` levels, each half the
+    last, with a ramp of values: (root zarr.json, [(path, bytes)])."""
+    import json
+
+    axes = [{"name": a, "type": "space", "unit": "micrometer"} for a in "zyx"]
+    datasets = [
+        {"path": str(l), "coordinateTransformations": [{"type": "scale", "scale": [2.0**l] * 3}]}
+        for l in range(levels)
+    ]
+    root = {"zarr_format": 3, "node_type": "group",
+            "attributes": {"ome": {"version": "0.5", "multiscales": [{"axes": axes, "datasets": datasets}]}}}
+    codecs = [{"name": "bytes", "configuration": {"endian": "little"}}]
+    if codec == "gzip":
+        codecs.append({"name": "gzip", "configuration": {"level": 1}})
+    parts = []
+    dims = list(shape)
+    for l in range(levels):
+        meta = {"zarr_format": 3, "node_type": "array", "shape": dims, "data_type": dtype,
+                "chunk_grid": {"name": "regular", "configuration": {"chunk_shape": list(chunk)}},
+                "chunk_key_encoding": {"name": "default", "configuration": {"separator": "/"}},
+                "fill_value": 0, "codecs": codecs}
+        parts.append((f"{l}/zarr.json", json.dumps(meta).encode()))
+        n = [-(-d // c) for d, c in zip(dims, chunk)]
+        for k in range(n[0]):
+            for j in range(n[1]):
+                for i in range(n[2]):
+                    vals = [(17 * (k + j + i) + v) % 256 for v in range(chunk[0] * chunk[1] * chunk[2])]
+                    fmt = {"uint8": "B", "uint16": "H", "float32": "f"}[dtype]
+                    raw = struct.pack(f"<{len(vals)}{fmt}", *vals)
+                    if codec == "gzip":
+                        raw = gzip.compress(raw, 1)
+                    parts.append((f"{l}/c/{k}/{j}/{i}", raw))
+        dims = [max(1, d // 2) for d in dims]
+    return json.dumps(root).encode(), parts
+
+
+def zarr_v2_store():
+    """An OME-Zarr 0.4 store (Zarr v2), one level, no compressor."""
+    import json
+
+    attrs = {"multiscales": [{"version": "0.4",
+                              "axes": [{"name": a, "type": "space"} for a in "zyx"],
+                              "datasets": [{"path": "0", "coordinateTransformations": [{"type": "scale", "scale": [1, 1, 1]}]}]}]}
+    arr = {"zarr_format": 2, "shape": [3, 4, 5], "chunks": [2, 2, 5], "dtype": "<u2",
+           "compressor": None, "fill_value": 0, "order": "C", "filters": None}
+    parts = [(".zattrs", json.dumps(attrs).encode()), ("0/.zarray", json.dumps(arr).encode())]
+    for k in range(2):
+        for j in range(2):
+            parts.append((f"0/{k}.{j}.0", struct.pack("<20H", *range(20 * (k + j), 20 * (k + j) + 20))))
+    return json.dumps({"zarr_format": 2}).encode(), parts
+
+
+def zarr_seeds(c, data):
+    for name, kw in [("v3_gzip_two_levels", {}), ("v3_raw_one_level", {"codec": None, "levels": 1}),
+                     ("v3_f32_one_chunk", {"codec": None, "dtype": "float32", "chunk": (4, 4, 4), "levels": 1})]:
+        root, parts = zarr_v3_store(**kw)
+        c.add("zarr", name, join(root, *parts))
+    root, parts = zarr_v2_store()
+    c.add("zarr", "v2_u16", join(root, *parts))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--out", default=str(ROOT / "fuzz" / "corpus"))
     args = ap.parse_args()
     data = data_dir()
     c = Corpus(Path(args.out))
-    for f in [nrrd, metaimage, vtk, raw, nifti, image_stack, dicom, fds, vdb_seeds, mitsuba, text_seeds]:
+    for f in [nrrd, metaimage, vtk, raw, nifti, image_stack, dicom, fds, vdb_seeds, mitsuba, text_seeds, zarr_seeds]:
         f(c, data)
     seeds = ROOT / "fuzz" / "seeds"
     if seeds.is_dir():  # hand-made seeds kept in the repository

@@ -21,8 +21,10 @@
 //! The main file gets the name the target gives it (e.g. `v.nhdr`); each
 //! further part is written under `<name>`, made safe for a file name
 //! (characters other than `A-Z a-z 0-9 . _ -` become `_`; an empty, `.` or
-//! `..` name, or one taken already, becomes `part<k>`). The raw target
-//! starts with a 34-byte layout instead (see [`Target::Raw`]).
+//! `..` name, or one taken already, becomes `part<k>`). The Zarr target's
+//! names are paths inside the store (`0/c/0/0/0`; see [`Target::Zarr`]).
+//! The raw target starts with a 34-byte layout instead (see
+//! [`Target::Raw`]).
 
 use crate::error::Result;
 use crate::geometry::file::GeometryDef;
@@ -95,11 +97,25 @@ pub enum Target {
     /// An OBJ mesh `mesh.obj` as a geometry file's mesh; when it loads,
     /// rays are cast at it.
     Obj,
+    /// An OME-Zarr / Zarr store, the folder `s.zarr`: the main part is its
+    /// root `zarr.json` (`.zgroup` where it says `"zarr_format": 2`), the
+    /// other parts its files under their paths in the store (`0/zarr.json`,
+    /// `0/c/0/0/0`, `0/.zarray`, `0/0.0.0`…; each component made safe, as
+    /// a part's name). `ZarrStore::open` and its summary; per level the
+    /// first chunks' value ranges and voxels (chunks of up to
+    /// [`ZARR_READ_LIMIT`] bytes decoded: the reader takes chunks of up to
+    /// 4 GiB); `io::open` where level 0 is within that limit too.
+    Zarr,
 }
+
+/// The largest chunk or level (decoded bytes) the [`Target::Zarr`] input
+/// has read: a store may rightly claim gigabytes of fill value in a few
+/// bytes of metadata, which is not a bug to find.
+pub const ZARR_READ_LIMIT: u64 = 64 << 20;
 
 impl Target {
     /// Every target, in the order `fuzz/run.sh` runs them.
-    pub const ALL: [Target; 17] = [
+    pub const ALL: [Target; 18] = [
         Target::Nrrd,
         Target::MetaImage,
         Target::Vtk,
@@ -116,6 +132,7 @@ impl Target {
         Target::Geometry,
         Target::Obj,
         Target::Vdb,
+        Target::Zarr,
         // Last: its reader is being rewritten.
         Target::Dicom,
     ];
@@ -140,6 +157,7 @@ impl Target {
             Target::Tf => "tf",
             Target::Geometry => "geometry",
             Target::Obj => "obj",
+            Target::Zarr => "zarr",
         }
     }
 
@@ -238,6 +256,14 @@ pub fn run(target: Target, bytes: &[u8]) -> Vec<Outcome> {
             if !parts.is_empty() {
                 out.push(io::open(dir.path(), &OpenOptions::default()).map(describe));
             }
+        }
+        Target::Zarr => {
+            let root = dir.write_tree(bytes, "s.zarr", |m| {
+                let v2 = find(m, b"\"zarr_format\": 2").is_some()
+                    || find(m, b"\"zarr_format\":2").is_some();
+                if v2 { ".zgroup" } else { "zarr.json" }.into()
+            });
+            zarr_store(&root, &mut out);
         }
         Target::Nrrd
         | Target::MetaImage
@@ -392,6 +418,41 @@ fn fds_case(p: &Path, out: &mut Vec<Outcome>) {
     }
 }
 
+/// Opens the store at `p`, its summary; per level the first chunks' ranges
+/// and voxels; the whole volume where level 0 is small.
+fn zarr_store(p: &Path, out: &mut Vec<Outcome>) {
+    use crate::volume::chunked::ChunkedSource;
+    let store = match io::zarr::ZarrStore::open(p) {
+        Ok(s) => s,
+        Err(e) => {
+            out.push(Err(e));
+            return;
+        }
+    };
+    out.push(Ok(store.summary().join("\n")));
+    let size = store.scalar_type().size() as u64;
+    let bytes = |d: [u64; 3]| d.iter().try_fold(size, |a, &n| a.checked_mul(n));
+    let small = |d: [u64; 3]| bytes(d).is_some_and(|b| b <= ZARR_READ_LIMIT);
+    for (i, l) in store.levels().iter().enumerate() {
+        let n = l.chunk_counts();
+        let total = n[0].saturating_mul(n[1]).saturating_mul(n[2]);
+        for k in 0..total.min(3) {
+            let c = l.chunk_at(k);
+            out.push(Ok(format!("{:?}", store.chunk_range(i, c))));
+            if small(l.chunk.map(u64::from)) {
+                out.push(
+                    store
+                        .read_chunk(i, c)
+                        .map(|d| format!("level {i} chunk {c:?}: {} voxels", d.len())),
+                );
+            }
+        }
+    }
+    if small(store.levels()[0].dims) {
+        out.push(io::open(p, &OpenOptions::default()).map(describe));
+    }
+}
+
 /// Bakes and evaluates a transfer function the way a render does.
 fn exercise_tf(tf: &TransferFunction) -> String {
     let vol = tiny_volume();
@@ -496,6 +557,33 @@ impl Scratch {
         }
         self.write(&main_name, main)
     }
+
+    /// Writes the input as the folder `root` (a store): the main part as
+    /// `root/<main_name>`, the other parts under their relative paths
+    /// (`/`-separated, at most 8 deep, each component made safe; a part
+    /// whose path is unusable, or collides with another's, is left out).
+    /// Returns the folder's path.
+    fn write_tree(&self, bytes: &[u8], root: &str, main_name: impl Fn(&[u8]) -> String) -> PathBuf {
+        let (main, parts) = split_parts(bytes);
+        let root = self.dir.join(root);
+        std::fs::create_dir_all(&root)
+            .unwrap_or_else(|e| panic!("cannot make the scratch folder {}: {e}", root.display()));
+        let _ = std::fs::write(root.join(main_name(main)), main);
+        for (name, data) in parts {
+            let comps: Vec<String> = name.split(|&b| b == b'/').map(safe_name).collect();
+            if comps.len() > 8 || comps.iter().any(|c| c.is_empty() || c == "." || c == "..") {
+                continue;
+            }
+            let p = comps.iter().fold(root.clone(), |p, c| p.join(c));
+            if let Some(parent) = p.parent() {
+                let _ = std::fs::create_dir_all(parent);
+            }
+            if !p.exists() {
+                let _ = std::fs::write(&p, data);
+            }
+        }
+        root
+    }
 }
 
 impl Drop for Scratch {
@@ -522,6 +610,38 @@ mod tests {
             vec![(&b"a.raw"[..], &b"12\n3"[..]), (&b"../b"[..], &b""[..])]
         );
         assert_eq!(safe_name(b"../b/c\0"), ".._b_c_");
+    }
+
+    #[test]
+    fn a_zarr_store_reaches_the_reader_and_lying_chunks_are_refused() {
+        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/fuzz-regressions/zarr");
+        let input = |name: &str| std::fs::read(dir.join(name)).unwrap();
+        for (name, read) in [
+            ("seed-v3_gzip_two_levels", "[4, 4, 4] U8"),
+            ("seed-v2_u16", "[5, 4, 3] U16"),
+        ] {
+            let out = run(Target::Zarr, &input(name));
+            assert!(out.iter().all(|o| o.is_ok()), "{name}: {out:?}");
+            // Summary, then ranges and voxels of chunks, then the volume.
+            assert!(out.len() >= 4, "{name}: {out:?}");
+            let last = out.last().unwrap().as_ref().unwrap();
+            assert_eq!(last, read, "{name}");
+        }
+        let bad = run(Target::Zarr, &input("hostile-chunk-product-overflows"));
+        assert_eq!(bad.len(), 1, "{bad:?}");
+        let e = bad[0].as_ref().unwrap_err().to_string();
+        assert!(e.contains("over 2⁶⁴") && e.contains("4 GiB"), "{e}");
+        for name in ["hostile-shape-of-exabytes", "hostile-ranges-sidecar-count-overflows"] {
+            let bad = run(Target::Zarr, &input(name));
+            let e = bad[0].as_ref().unwrap_err().to_string();
+            assert!(e.contains("up to 2³² chunks"), "{name}: {e}");
+        }
+        // 2³⁰ chunks of 256³, none stored: it opens, its chunks read as
+        // the fill value, and the volume is not read whole.
+        let fill = run(Target::Zarr, &input("hostile-sixteen-petabytes-of-fill"));
+        assert!(fill.iter().all(|o| o.is_ok()), "{fill:?}");
+        let chunks = fill.iter().flatten().filter(|o| o.contains("16777216 voxels"));
+        assert_eq!(chunks.count(), 3, "{fill:?}");
     }
 
     #[test]

@@ -36,7 +36,7 @@ impl Level {
     /// Chunk number `i`, counting x fastest.
     pub fn chunk_at(&self, i: u64) -> [u64; 3] {
         let n = self.chunk_counts();
-        [i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])]
+        [i % n[0], (i / n[0]) % n[1], i / n[0] / n[1]]
     }
 
     /// The number of chunk `c`, counting x fastest (as [`Level::chunk_at`]).
@@ -58,8 +58,10 @@ impl Level {
     }
 
     /// Bytes of the whole level of type `ty`.
+    /// Saturating: a store's metadata may claim any shape.
     pub fn bytes(&self, ty: ScalarType) -> u64 {
-        self.dims.iter().product::<u64>() * ty.size() as u64
+        let size = ty.size() as u64;
+        self.dims.iter().fold(size, |b, &d| b.saturating_mul(d))
     }
 }
 

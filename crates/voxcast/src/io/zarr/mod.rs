@@ -463,13 +463,31 @@ impl ZarrStore {
                 return Err(Error::format(&apath, "shape", "an axis of length 0"));
             }
             let cs = [grid[xi], grid[yi], grid[zi]];
-            let cbytes = cs.iter().product::<u64>() * stored.volume_type().size() as u64;
-            if cs.iter().any(|&c| c > u32::MAX as u64) || cbytes > (4u64 << 30) {
+            // Checked: three axes of 2²² already overflow 64 bits.
+            let size = stored.volume_type().size() as u64;
+            let cbytes = cs.iter().try_fold(size, |b, &c| b.checked_mul(c));
+            if cs.iter().any(|&c| c > u32::MAX as u64) || cbytes.is_none_or(|b| b > (4u64 << 30)) {
+                let decoded = cbytes.map_or("over 2⁶⁴".to_string(), |b| b.to_string());
                 return Err(Error::unsupported(
                     &apath,
                     format!(
-                        "chunks of {}×{}×{} voxels ({} bytes decoded): voxcast reads chunks of up to 4 GiB",
-                        cs[0], cs[1], cs[2], cbytes
+                        "chunks of {}×{}×{} voxels ({decoded} bytes decoded): voxcast reads chunks of up to 4 GiB",
+                        cs[0], cs[1], cs[2]
+                    ),
+                ));
+            }
+            // The renderer keeps a few bytes per chunk of a level; a
+            // store of more chunks than 2³² (a petabyte in chunks of 64³
+            // bytes) is refused, which also keeps the chunks' numbers in
+            // 64 bits.
+            let counts = [0, 1, 2].map(|k| dims[k].div_ceil(cs[k]));
+            let n_chunks = counts.iter().try_fold(1u64, |n, &c| n.checked_mul(c));
+            if n_chunks.is_none_or(|n| n > 1 << 32) {
+                return Err(Error::unsupported(
+                    &apath,
+                    format!(
+                        "{}×{}×{} chunks of {}×{}×{} voxels: voxcast reads levels of up to 2³² chunks",
+                        counts[0], counts[1], counts[2], cs[0], cs[1], cs[2]
                     ),
                 ));
             }

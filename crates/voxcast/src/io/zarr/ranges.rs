@@ -22,16 +22,20 @@ pub(super) fn read_ranges(array_dir: &Path, l: &Level) -> Option<Ranges> {
     let p = array_dir.join(RANGES_FILE);
     let meta = std::fs::metadata(&p).ok()?;
     let counts = l.chunk_counts();
-    let n = counts.iter().product::<u64>();
-    let want = 8 + 24 + n * 8;
-    if meta.len() != want {
+    // Checked: the chunk counts come from the store's metadata.
+    let want = counts
+        .iter()
+        .try_fold(8u64, |b, &n| b.checked_mul(n))
+        .and_then(|b| b.checked_add(32));
+    if want != Some(meta.len()) {
         eprintln!(
-            "warning: {}: {} bytes where the level's {}×{}×{} chunks need {want}; ignored (chunks will be read to learn their values)",
+            "warning: {}: {} bytes where the level's {}×{}×{} chunks need {}; ignored (chunks will be read to learn their values)",
             p.display(),
             meta.len(),
             counts[0],
             counts[1],
-            counts[2]
+            counts[2],
+            want.map_or("over 2⁶⁴".to_string(), |w| w.to_string())
         );
         return None;
     }
