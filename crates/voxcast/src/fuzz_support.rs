@@ -631,7 +631,10 @@ mod tests {
         assert_eq!(bad.len(), 1, "{bad:?}");
         let e = bad[0].as_ref().unwrap_err().to_string();
         assert!(e.contains("over 2⁶⁴") && e.contains("4 GiB"), "{e}");
-        for name in ["hostile-shape-of-exabytes", "hostile-ranges-sidecar-count-overflows"] {
+        for name in [
+            "hostile-shape-of-exabytes",
+            "hostile-ranges-sidecar-count-overflows",
+        ] {
             let bad = run(Target::Zarr, &input(name));
             let e = bad[0].as_ref().unwrap_err().to_string();
             assert!(e.contains("up to 2³² chunks"), "{name}: {e}");
@@ -640,7 +643,10 @@ mod tests {
         // the fill value, and the volume is not read whole.
         let fill = run(Target::Zarr, &input("hostile-sixteen-petabytes-of-fill"));
         assert!(fill.iter().all(|o| o.is_ok()), "{fill:?}");
-        let chunks = fill.iter().flatten().filter(|o| o.contains("16777216 voxels"));
+        let chunks = fill
+            .iter()
+            .flatten()
+            .filter(|o| o.contains("16777216 voxels"));
         assert_eq!(chunks.count(), 3, "{fill:?}");
     }
 

@@ -70,7 +70,7 @@ type TileJob<'a> = dyn Fn(&mut RenderStats, (u32, u32, u32), &mut [[f32; 4]]) + 
 /// The parallel loop of [`render_whole_tiles`], compiled once: the tile's
 /// work comes as a `dyn` call (one per tile, never per pixel), so rayon's
 /// machinery is not instantiated again for every integrator, voxel type
-/// and method — it was a fifth of the crate's code and build time.
+/// and method — it was a fifth of the crate's LLVM IR.
 fn run_tiles(
     w: u32,
     h: u32,

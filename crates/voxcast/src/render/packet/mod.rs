@@ -514,8 +514,9 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // Only the combinations a render can ask for are instantiated:
         // `Job::packets` skips empty blocks only on the fixed step (no
         // runs) and groups only in runs; `importance` has no runs. `R::ON`
-        // is known at compile time, so the other branch is not built — a
-        // third fewer copies of the march, which is most of the crate's
+        // is known at compile time, so the other branch is not built:
+        // 176 copies of the march where all combinations made 320
+        // (`cargo llvm-lines`), and the march was most of the crate's
         // build time.
         macro_rules! go {
             ($f:ident) => {

@@ -66,7 +66,7 @@ pub(in crate::render) type WalkFn<'a, T> =
 /// runs. The marcher's level rule sits behind `walk`, a `dyn` call once
 /// per run (the scalar walk of `adaptive-s0` only; the vector walk reads
 /// `vector`), so the packets' loop is compiled once for every rule, not
-/// once per rule — the loop is most of the crate's build time.
+/// once per rule (80 copies of the march instead of 176).
 pub(in crate::render) struct Adapt<'a, T> {
     pub level_steps: &'a [f32],
     pub tables: &'a [[f32; 4]],
