@@ -430,16 +430,12 @@ fn zarr_store(p: &Path, out: &mut Vec<Outcome>) {
         }
     };
     out.push(Ok(store.summary().join("\n")));
-    let size = store.scalar_type().size() as u64;
-    let bytes = |d: [u64; 3]| d.iter().try_fold(size, |a, &n| a.checked_mul(n));
-    let small = |d: [u64; 3]| bytes(d).is_some_and(|b| b <= ZARR_READ_LIMIT);
+    let ty = store.scalar_type();
     for (i, l) in store.levels().iter().enumerate() {
-        let n = l.chunk_counts();
-        let total = n[0].saturating_mul(n[1]).saturating_mul(n[2]);
-        for k in 0..total.min(3) {
+        for k in 0..l.chunk_total().unwrap_or(u64::MAX).min(3) {
             let c = l.chunk_at(k);
             out.push(Ok(format!("{:?}", store.chunk_range(i, c))));
-            if small(l.chunk.map(u64::from)) {
+            if l.chunk_bytes(ty) <= ZARR_READ_LIMIT {
                 out.push(
                     store
                         .read_chunk(i, c)
@@ -448,7 +444,7 @@ fn zarr_store(p: &Path, out: &mut Vec<Outcome>) {
             }
         }
     }
-    if small(store.levels()[0].dims) {
+    if store.levels()[0].bytes(ty) <= ZARR_READ_LIMIT {
         out.push(io::open(p, &OpenOptions::default()).map(describe));
     }
 }

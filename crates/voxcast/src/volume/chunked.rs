@@ -33,6 +33,13 @@ impl Level {
         std::array::from_fn(|a| self.dims[a].div_ceil(self.chunk[a] as u64))
     }
 
+    /// Chunks in the level, or `None` past 2⁶⁴ (a store's metadata may
+    /// claim any shape).
+    pub fn chunk_total(&self) -> Option<u64> {
+        let n = self.chunk_counts();
+        n[0].checked_mul(n[1])?.checked_mul(n[2])
+    }
+
     /// Chunk number `i`, counting x fastest.
     pub fn chunk_at(&self, i: u64) -> [u64; 3] {
         let n = self.chunk_counts();

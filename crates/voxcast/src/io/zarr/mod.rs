@@ -476,21 +476,6 @@ impl ZarrStore {
                     ),
                 ));
             }
-            // The renderer keeps a few bytes per chunk of a level; a
-            // store of more chunks than 2³² (a petabyte in chunks of 64³
-            // bytes) is refused, which also keeps the chunks' numbers in
-            // 64 bits.
-            let counts = [0, 1, 2].map(|k| dims[k].div_ceil(cs[k]));
-            let n_chunks = counts.iter().try_fold(1u64, |n, &c| n.checked_mul(c));
-            if n_chunks.is_none_or(|n| n > 1 << 32) {
-                return Err(Error::unsupported(
-                    &apath,
-                    format!(
-                        "{}×{}×{} chunks of {}×{}×{} voxels: voxcast reads levels of up to 2³² chunks",
-                        counts[0], counts[1], counts[2], cs[0], cs[1], cs[2]
-                    ),
-                ));
-            }
             let at = |v: &Vec<f64>, i: usize, d: f64| v.get(i).copied().unwrap_or(d);
             let spacing = Vec3::new(
                 at(scale, xi, 1.0) as f32,
@@ -525,12 +510,27 @@ impl ZarrStore {
                     ));
                 }
             }
-            levels.push(Level {
+            let level = Level {
                 dims,
                 spacing,
                 origin,
                 chunk: cs.map(|c| c as u32),
-            });
+            };
+            // The renderer keeps a few bytes per chunk of a level; a
+            // store of more chunks than 2³² (a petabyte in chunks of 64³
+            // bytes) is refused, which also keeps the chunks' numbers in
+            // 64 bits.
+            if level.chunk_total().is_none_or(|n| n > 1 << 32) {
+                let n = level.chunk_counts();
+                return Err(Error::unsupported(
+                    &apath,
+                    format!(
+                        "{}×{}×{} chunks of {}×{}×{} voxels: voxcast reads levels of up to 2³² chunks",
+                        n[0], n[1], n[2], cs[0], cs[1], cs[2]
+                    ),
+                ));
+            }
+            levels.push(level);
             let r = read_ranges(&apath, &levels[l]);
             infos.push(LevelInfo {
                 path: p.clone(),
