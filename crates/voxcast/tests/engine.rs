@@ -259,7 +259,9 @@ fn packets_give_the_scalar_pixels() {
 /// empty blocks up to four blocks from anything visible between them,
 /// and the rays cross those stretches at every angle; at every level this
 /// CPU has, the packets give the scalar pixels with the same samples
-/// (a jump passes only samples the scalar march skips too).
+/// (a jump passes only samples the scalar march skips too); and
+/// `importance`'s vector walks, through the same long empty stretches,
+/// give the scalar walk's samples.
 #[test]
 fn packets_jump_the_empty_space_and_keep_the_samples() {
     use voxcast::volume::VoxelData;
@@ -301,12 +303,20 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             elevation,
             ..Default::default()
         };
-        for shading in [false, true] {
+        for (method, shading) in [
+            (Method::Uniform, false),
+            (Method::Uniform, true),
+            (Method::Importance, false),
+            (Method::Importance, true),
+        ] {
             let mut p = RenderParams {
                 width: 64,
                 height: 48,
+                method,
                 shading,
                 step: 0.41,
+                spp: 2,
+                seed: 3,
                 ..Default::default()
             };
             p.simd = Simd::Scalar;
@@ -314,8 +324,10 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             for (level, name) in simd_levels() {
                 p.simd = level;
                 let (simd, ss) = r.render(&tf, &cam, &p, &no_progress).unwrap();
-                let what =
-                    format!("{name}: azimuth {azimuth} elevation {elevation} shading {shading}");
+                let what = format!(
+                    "{name}: {} azimuth {azimuth} elevation {elevation} shading {shading}",
+                    method.name()
+                );
                 let d = max_diff(&simd, &scalar);
                 assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
                 assert_eq!(ss.samples, sc.samples, "{what}");

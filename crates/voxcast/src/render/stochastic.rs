@@ -350,8 +350,10 @@ pub(super) const GAMMA: f32 = 0.35;
 /// that this replaces saved fewer samples.
 pub(super) const BETA: f32 = 0.3;
 
-/// One block of the `importance` pdf.
+/// One block of the `importance` pdf (two floats in this order: the
+/// packets' walks gather them).
 #[derive(Clone, Copy, Debug)]
+#[repr(C)]
 pub(super) struct PdfBlock {
     /// `γ·log₂(σ_top/σ_max)` (≥ 0): the block's level before attenuation;
     /// negative where the TF makes the block transparent (no mass).

@@ -125,9 +125,10 @@ impl BlockWalker {
 
 impl BlockWalker {
     /// The walk's state: the block it is in (per axis), where it leaves
-    /// that block on each axis (∞: never), and where it stands.
-    pub fn state(&self) -> ([i64; 3], [f32; 3], f32) {
-        (self.block, self.t_max, self.t)
+    /// that block on each axis (∞: never), where it stands, and where it
+    /// ends.
+    pub fn state(&self) -> ([i64; 3], [f32; 3], f32, f32) {
+        (self.block, self.t_max, self.t, self.t_out)
     }
 }
 

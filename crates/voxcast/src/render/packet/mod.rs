@@ -2,10 +2,10 @@
 //! in one AVX-512 register, or as two packets of eight in AVX2 registers —
 //! for the commonest render — a fixed step (`uniform`, `jitter`),
 //! trilinear, flat or Blinn–Phong shaded, front to back — for
-//! `importance`, whose march is a fixed step per block (each lane walks
-//! its blocks in scalar code, once per block, for the block's pdf level,
-//! and the vector loop samples with its lane's spacing and reads its
-//! level's table), and for the step-per-block marches (`adaptive` and its
+//! `importance`, whose march is a fixed step per block (the lanes walk
+//! their blocks in vector registers, once per block, for the block's pdf
+//! level; the loop samples with each lane's spacing and reads its level's
+//! table), and for the step-per-block marches (`adaptive` and its
 //! rules, S0's grouped reuse; [`runs`]).
 //!
 //! Each lane keeps its own ray: its sample grid `t₀ + k·s`, its first and

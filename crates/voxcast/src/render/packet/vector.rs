@@ -2,10 +2,11 @@
 //! two widths (see the parent module): the trilinear gathers, the block
 //! exits of empty-space skipping, shading and the marching loop.
 
+use super::importance::{ImpState, VImp};
 use super::shade::{Deferred, Light};
 use super::simd::{Simd, W16, W8};
 use super::vwalk::{Rays, VWalk};
-use super::walk::{walk_imp, walk_runs, ImpState, RunRegs, SLOT_AL, SLOT_P, SLOT_Q, SLOT_W};
+use super::walk::{walk_runs, RunRegs, SLOT_AL, SLOT_P, SLOT_Q, SLOT_W};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::{Voxel, VoxelKind};
 use glam::Vec4;
@@ -470,16 +471,23 @@ unsafe fn march<
     let mut cnt = S::splat_i(0);
     let mut cnt_shaded = S::splat_i(0);
     let mut cnt_interp = S::splat_i(0);
-    // `importance`: each lane's position, spacing, stretch end and
-    // table offset; every lane starts by fetching its first stretch.
-    let mut is = ImpState::<S>::new();
+    // `importance`: the lanes' block walks, and each lane's position,
+    // spacing, stretch end and table offset; every lane starts by
+    // fetching its first stretch.
+    let (mut vi, mut is) = match &pk.imp {
+        Some(ip) if IMP => {
+            let rays = Rays { o, d, inv_d, t0 };
+            let (v, is) = VImp::<S>::new(ip, st, f.block_counts, f.block_size, &rays);
+            (Some(v), is)
+        }
+        _ => (None, ImpState::<S>::idle()),
+    };
     loop {
         if IMP {
-            // Lanes past their stretch walk on to the next one (scalar).
+            // Lanes past their stretch walk on to the next one.
             let need = S::and(live, S::ge(is.t, is.tb));
-            let bits = S::bits(need);
-            if bits != 0 {
-                let ended = walk_imp::<S, T, R>(pk, st, bits, &mut is);
+            if S::bits(need) != 0 {
+                let ended = vi.as_mut().unwrap_unchecked().next(need, &mut is);
                 // A lane whose walk ended is done, and not terminated.
                 live = S::but(live, ended);
                 walked = S::or(walked, ended);

@@ -12,11 +12,14 @@
 //! get the scalar walk's runs. Only the compositing of a run's last
 //! sample over its stretch (an `exp` per run, not per block) stays scalar.
 //!
+//! The 3D DDA itself ([`VBlocks`]) is shared with `importance`'s walks
+//! ([`super::importance::VImp`]).
+//!
 //! [`RunWalk::next`]: crate::render::march::RunWalk::next
 
 use super::simd::Simd;
 use super::walk::{RunRegs, SLOT_W};
-use super::{Packets, Runs, State};
+use super::{Packets, Runs, State, LANES};
 use crate::render::composite::Front;
 use crate::render::march::{flush, stretch_alpha, Pending, VRule};
 use crate::render::ray::Composite;
@@ -42,20 +45,147 @@ pub(in crate::render) struct VParams<'a> {
     pub per_block: bool,
 }
 
-/// The lanes' walks: each lane's block (per axis), where it leaves it on
-/// each axis, where it stands; the run it is merging (`cur`: first sample,
-/// end, level index, group cap) and the block that ended the run it was
-/// handed last (`held`, and whether that block is skipped); whether its
-/// walk is over. And what every walk shares.
-pub(super) struct VWalk<'a, S: Simd> {
-    p: VParams<'a>,
+/// The lanes' 3D DDA over the block grid in vector registers
+/// ([`BlockWalker::next`] operation for operation, in its `staying`
+/// mode): each lane's block (per axis), where it leaves it on each axis,
+/// where it stands and where its walk ends; and what the walks share: the
+/// rays (voxel coordinates), each axis's direction (−1, 0, 1; 1 as a float
+/// where it goes up), the block grid.
+///
+/// [`BlockWalker::next`]: crate::render::march::BlockWalker
+pub(super) struct VBlocks<S: Simd> {
     blk: [S::I; 3],
     tmax: [S::F; 3],
-    t: S::F,
+    pub t: S::F,
+    pub t_out: S::F,
+    o: [S::F; 3],
+    inv_d: [S::F; 3],
+    sgn: [S::I; 3],
+    up: [S::F; 3],
+    moving: [S::M; 3],
+    size: S::F,
+    last: [S::I; 3],
+    ncx: S::I,
+    ncy: S::I,
+}
+
+/// One lane's walk, as [`VBlocks::new`] takes it: its block and where it
+/// leaves it on each axis ([`BlockWalker::state`]), where it stands and
+/// where the walk ends.
+///
+/// [`BlockWalker::state`]: crate::render::march::BlockWalker::state
+pub(super) type LaneWalk = ([i64; 3], [f32; 3], f32, f32);
+
+impl<S: Simd> VBlocks<S> {
+    /// The walks of the lanes (`None`: a lane with no walk, which must
+    /// never step) on the rays `o + d·t` (`inv_d = 1/d`, as the scalar
+    /// walks divide; the grids' start unused), over `counts` blocks of
+    /// `size` voxels.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub unsafe fn new(
+        lanes: &[Option<LaneWalk>],
+        counts: [usize; 3],
+        size: usize,
+        &Rays { o, d, inv_d, .. }: &Rays<S>,
+    ) -> Self {
+        let mut a = [S::Af::default(); 5];
+        let mut bi = [S::Ai::default(); 3];
+        for (i, w) in lanes.iter().enumerate().take(S::N) {
+            let Some((b, tm, t, t_out)) = *w else {
+                continue;
+            };
+            for c in 0..3 {
+                bi[c][i] = b[c] as i32;
+                a[c][i] = tm[c];
+            }
+            a[3][i] = t;
+            a[4][i] = t_out;
+        }
+        let zero = S::splat(0.0);
+        let sgn = [0, 1, 2].map(|c| {
+            let up = S::gt(d[c], zero);
+            let down = S::lt(d[c], zero);
+            S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
+        });
+        VBlocks {
+            blk: [S::load_i(bi[0]), S::load_i(bi[1]), S::load_i(bi[2])],
+            tmax: [S::load(a[0]), S::load(a[1]), S::load(a[2])],
+            t: S::load(a[3]),
+            t_out: S::load(a[4]),
+            o,
+            inv_d,
+            sgn,
+            up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
+            moving: [0, 1, 2].map(|c| S::or(S::gt(d[c], zero), S::lt(d[c], zero))),
+            size: S::splat(size as f32),
+            last: counts.map(|n| S::splat_i(n as i32 - 1)),
+            ncx: S::splat_i(counts[0] as i32),
+            ncy: S::splat_i(counts[1] as i32),
+        }
+    }
+
+    /// Where the ray leaves block `b` on axis `c` (`BlockWalker`'s
+    /// `crossing`: the far plane's `(plane − o)·(1/d)`; ∞ where the ray
+    /// does not move on that axis).
+    #[inline(always)]
+    unsafe fn crossing(&self, c: usize, b: S::I) -> S::F {
+        let plane = (S::to_f(b) + self.up[c]) * self.size;
+        let t = (plane - self.o[c]) * self.inv_d[c];
+        S::blend(self.moving[c], S::splat(f32::INFINITY), t)
+    }
+
+    /// One block for each lane of `m` (lanes whose walk is not over, `t <
+    /// t_out`): where the lane enters and leaves it, and its index; the
+    /// lanes move on to their next block.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub unsafe fn step(&mut self, m: S::M) -> (S::F, S::F, S::I) {
+        let [t0m, t1m, t2m] = self.tmax;
+        let ax0 = S::and(S::ge(t1m, t0m), S::ge(t2m, t0m));
+        let ax1 = S::but(S::ge(t2m, t1m), ax0);
+        let ax = [ax0, ax1, S::but(S::but(m, ax0), ax1)];
+        let tsel = S::blend(ax0, S::blend(ax1, t2m, t1m), t0m);
+        let ta = self.t;
+        let tb = S::max(S::min(tsel, self.t_out), ta);
+        let [bx, by, bz] = self.blk;
+        let b = S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)));
+        self.t = S::blend(m, self.t, tb);
+        for (c, axc) in ax.into_iter().enumerate() {
+            let mc = S::and(m, axc);
+            let nb = S::blend_i(mc, self.blk[c], self.blk[c] + self.sgn[c]);
+            let outside = S::and(
+                mc,
+                S::or(
+                    S::positive(S::splat_i(0) - nb),
+                    S::positive(nb - self.last[c]),
+                ),
+            );
+            // Past the grid on this axis: the walk stays in the edge
+            // block, with no more crossings on it.
+            self.blk[c] = S::blend_i(outside, nb, nb - self.sgn[c]);
+            let tm = S::blend(mc, self.tmax[c], self.crossing(c, self.blk[c]));
+            self.tmax[c] = S::blend(outside, tm, S::splat(f32::INFINITY));
+        }
+        (ta, tb, b)
+    }
+}
+
+/// The lanes' run walks: their blocks ([`VBlocks`]); the run each is
+/// merging (`cur`: first sample, end, level index, group cap) and the
+/// block that ended the run it was handed last (`held`, and whether that
+/// block is skipped); whether its walk is over. And what every walk
+/// shares.
+pub(super) struct VWalk<'a, S: Simd> {
+    p: VParams<'a>,
+    w: VBlocks<S>,
     /// `(t − t₀)/s₀`, `s₀` the finest level's step: a sample index on
     /// that level's grid, for the blocks' first and end samples.
     q: S::F,
-    t_out: S::F,
     t_stop: S::F,
     t_end: S::F,
     cur: [S::F; 4],
@@ -64,19 +194,8 @@ pub(super) struct VWalk<'a, S: Simd> {
     held_ok: S::M,
     held_skip: S::M,
     ended: S::M,
-    // Shared: the rays (voxel coordinates), their sample grids' start,
-    // each axis's direction (−1, 0, 1; 1 as a float where it goes up),
-    // the block grid.
-    o: [S::F; 3],
-    inv_d: [S::F; 3],
+    // The rays' sample grids' start, and the finest level's step.
     t0: S::F,
-    sgn: [S::I; 3],
-    up: [S::F; 3],
-    moving: [S::M; 3],
-    size: S::F,
-    last: [S::I; 3],
-    ncx: S::I,
-    ncy: S::I,
     s0: S::F,
 }
 
@@ -85,6 +204,7 @@ type Run<S> = [<S as Simd>::F; 4];
 
 /// The lanes' rays: origin, direction and its reciprocal (voxel
 /// coordinates), and where their sample grids start.
+#[derive(Clone, Copy)]
 pub(super) struct Rays<S: Simd> {
     pub o: [S::F; 3],
     pub d: [S::F; 3],
@@ -107,68 +227,36 @@ impl<'a, S: Simd> VWalk<'a, S> {
         st: &State<'_>,
         counts: [usize; 3],
         size: usize,
-        Rays { o, d, inv_d, t0 }: Rays<S>,
+        rays: Rays<S>,
     ) -> Self {
-        let mut a = [S::Af::default(); 7];
-        let mut bi = [S::Ai::default(); 3];
+        let mut a = [S::Af::default(); 2];
+        let mut lanes: [Option<LaneWalk>; LANES] = [None; LANES];
         for (i, w) in st.runs.iter().enumerate().take(S::N) {
             let Some(w) = w else { continue };
-            let (b, tm, t) = w.walker.state();
-            for c in 0..3 {
-                bi[c][i] = b[c] as i32;
-                a[c][i] = tm[c];
-            }
-            a[3][i] = t;
-            a[4][i] = w.seg.t_out;
-            a[5][i] = w.seg.walk.1;
-            a[6][i] = w.seg.t_end();
+            let (b, tm, t, _) = w.walker.state();
+            lanes[i] = Some((b, tm, t, w.seg.t_out));
+            a[0][i] = w.seg.walk.1;
+            a[1][i] = w.seg.t_end();
         }
-        let zero = S::splat(0.0);
-        let sgn = [0, 1, 2].map(|c| {
-            let up = S::gt(d[c], zero);
-            let down = S::lt(d[c], zero);
-            S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
-        });
+        let w = VBlocks::new(&lanes, counts, size, &rays);
+        let t0 = rays.t0;
         let s0 = S::splat(p.steps[0]);
-        let t = S::load(a[3]);
-        let z = [zero; 4];
+        let z = [S::splat(0.0); 4];
         VWalk {
             p,
-            blk: [S::load_i(bi[0]), S::load_i(bi[1]), S::load_i(bi[2])],
-            tmax: [S::load(a[0]), S::load(a[1]), S::load(a[2])],
-            t,
-            q: (t - t0) / s0,
-            t_out: S::load(a[4]),
-            t_stop: S::load(a[5]),
-            t_end: S::load(a[6]),
+            q: (w.t - t0) / s0,
+            w,
+            t_stop: S::load(a[0]),
+            t_end: S::load(a[1]),
             cur: z,
             cur_ok: S::from_bits(0),
             held: z,
             held_ok: S::from_bits(0),
             held_skip: S::from_bits(0),
             ended: S::from_bits(0),
-            o,
-            inv_d,
             t0,
-            sgn,
-            up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
-            moving: [0, 1, 2].map(|c| S::or(S::gt(d[c], zero), S::lt(d[c], zero))),
-            size: S::splat(size as f32),
-            last: counts.map(|n| S::splat_i(n as i32 - 1)),
-            ncx: S::splat_i(counts[0] as i32),
-            ncy: S::splat_i(counts[1] as i32),
             s0,
         }
-    }
-
-    /// Where the ray leaves block `b` on axis `c` (`BlockWalker`'s
-    /// `crossing`: the far plane's `(plane − o)·(1/d)`; ∞ where the ray
-    /// does not move on that axis).
-    #[inline(always)]
-    unsafe fn crossing(&self, c: usize, b: S::I) -> S::F {
-        let plane = (S::to_f(b) + self.up[c]) * self.size;
-        let t = (plane - self.o[c]) * self.inv_d[c];
-        S::blend(self.moving[c], S::splat(f32::INFINITY), t)
     }
 
     /// `round(log₂ x)` ([`crate::render::march`]'s `round_log2`), clamped
@@ -197,11 +285,11 @@ impl<'a, S: Simd> VWalk<'a, S> {
         let (j, cap) = match self.p.rule {
             VRule::Fixed => return (zero, three),
             VRule::Max(_) => {
-                let f = k * self.t_out / tm;
+                let f = k * self.w.t_out / tm;
                 (S::blend(S::gt(f, zero), hi, self.level(k_ref / f)), three)
             }
             VRule::Classified(_) => {
-                let x = k_ref / (k * (self.t_out / tm));
+                let x = k_ref / (k * (self.w.t_out / tm));
                 let j = self.level(x);
                 // `x / 2^j`, exactly.
                 let cap = S::min(
@@ -261,7 +349,7 @@ impl<'a, S: Simd> VWalk<'a, S> {
         let mut out: Run<S> = [zero; 4];
         loop {
             // Walks that are over hand out their current run, or finish.
-            let over = S::and(m, S::or(self.ended, S::ge(self.t, self.t_out)));
+            let over = S::and(m, S::or(self.ended, S::ge(self.w.t, self.w.t_out)));
             if S::bits(over) != 0 {
                 self.ended = S::or(self.ended, over);
                 let hand = S::and(over, self.cur_ok);
@@ -277,34 +365,9 @@ impl<'a, S: Simd> VWalk<'a, S> {
                 break;
             }
             // One block per lane (`BlockWalker::next`).
-            let [t0m, t1m, t2m] = self.tmax;
-            let ax0 = S::and(S::ge(t1m, t0m), S::ge(t2m, t0m));
-            let ax1 = S::but(S::ge(t2m, t1m), ax0);
-            let ax = [ax0, ax1, S::but(S::but(m, ax0), ax1)];
-            let tsel = S::blend(ax0, S::blend(ax1, t2m, t1m), t0m);
-            let ta = self.t;
-            let tb = S::max(S::min(tsel, self.t_out), ta);
-            let [bx, by, bz] = self.blk;
-            let b = S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)));
-            self.t = S::blend(m, self.t, tb);
+            let (ta, tb, b) = self.w.step(m);
             let (qa, qb) = (self.q, (tb - self.t0) / self.s0);
             self.q = S::blend(m, self.q, qb);
-            for (c, axc) in ax.into_iter().enumerate() {
-                let mc = S::and(m, axc);
-                let nb = S::blend_i(mc, self.blk[c], self.blk[c] + self.sgn[c]);
-                let outside = S::and(
-                    mc,
-                    S::or(
-                        S::positive(S::splat_i(0) - nb),
-                        S::positive(nb - self.last[c]),
-                    ),
-                );
-                // Past the grid on this axis: the walk stays in the edge
-                // block, with no more crossings on it.
-                self.blk[c] = S::blend_i(outside, nb, nb - self.sgn[c]);
-                let tm = S::blend(mc, self.tmax[c], self.crossing(c, self.blk[c]));
-                self.tmax[c] = S::blend(outside, tm, S::splat(f32::INFINITY));
-            }
             // Past the walk's end with no run: over.
             let stop = S::but(S::and(m, S::ge(ta, self.t_stop)), self.cur_ok);
             self.ended = S::or(self.ended, stop);

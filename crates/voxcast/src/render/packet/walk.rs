@@ -1,6 +1,7 @@
 //! Where the vector loop hands lanes to their scalar walks: a
-//! step-per-block march's runs ([`walk_runs`]) and `importance`'s
-//! stretches ([`walk_imp`]), with the lane state each keeps in registers.
+//! step-per-block march's runs ([`walk_runs`]), with the lane state it
+//! keeps in registers (`adaptive-s0`'s; the other rules walk in vector
+//! registers, `super::vwalk`).
 
 use super::simd::Simd;
 use super::{Packets, Runs, State};
@@ -233,71 +234,4 @@ pub(super) unsafe fn walk_runs<S: Simd, T: Voxel, R: Runs<T>>(
         *r = S::load(v);
     }
     (S::from_bits(ended), S::from_bits(dead))
-}
-
-/// `importance`'s lanes in the vector loop: where each samples next,
-/// its spacing, the end of its stretch and the row offset of its level's
-/// table (in floats).
-pub(super) struct ImpState<S: Simd> {
-    pub t: S::F,
-    pub s: S::F,
-    pub tb: S::F,
-    pub off: S::I,
-}
-
-impl<S: Simd> ImpState<S> {
-    /// Every lane past its stretch: each fetches its first.
-    #[inline(always)]
-    pub unsafe fn new() -> Self {
-        ImpState {
-            t: S::splat(0.0),
-            s: S::splat(1.0),
-            tb: S::splat(f32::NEG_INFINITY),
-            off: S::splat_i(0),
-        }
-    }
-}
-
-/// The `importance` lanes of `bits`, past their stretch: each walks on
-/// to its next one (scalar). Returns the mask of the lanes whose walk
-/// ended.
-///
-/// # Safety
-/// The width's instructions; `pk.imp` is set and `st.imp` holds a walk
-/// for every lane of `bits`.
-#[inline(always)]
-pub(super) unsafe fn walk_imp<S: Simd, T: Voxel, R: Runs<T>>(
-    pk: &Packets<'_, T, R>,
-    st: &mut State<'_>,
-    bits: u32,
-    is: &mut ImpState<S>,
-) -> S::M {
-    let ip = pk.imp.as_ref().unwrap_unchecked();
-    let (mut t, mut s, mut tb, mut off) = (
-        S::store(is.t),
-        S::store(is.s),
-        S::store(is.tb),
-        S::store_i(is.off),
-    );
-    let mut dead = 0u32;
-    for (i, l) in st.imp.iter_mut().enumerate() {
-        if (bits >> i) & 1 == 0 {
-            continue;
-        }
-        let l = l.as_mut().unwrap_unchecked();
-        match ip.next(l, t[i], s[i], tb[i]) {
-            Some((ti, si, tbi, j)) => {
-                t[i] = ti;
-                s[i] = si;
-                tb[i] = tbi;
-                off[i] = (j * LUT_SIZE * 4) as i32;
-            }
-            None => dead |= 1 << i,
-        }
-    }
-    is.t = S::load(t);
-    is.s = S::load(s);
-    is.tb = S::load(tb);
-    is.off = S::load_i(off);
-    S::from_bits(dead)
 }
