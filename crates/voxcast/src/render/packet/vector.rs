@@ -58,6 +58,19 @@ unsafe fn lerp<S: Simd>(a: S::F, b: S::F, t: S::F) -> S::F {
     a + (b - a) * t
 }
 
+/// Trilinear interpolation of corners `c[x + 2y + 4z]` at fractions `f`
+/// (x first, then y, then z, as `Grid::sample`).
+#[inline(always)]
+unsafe fn trilinear<S: Simd>(c: [S::F; 8], [fx, fy, fz]: [S::F; 3]) -> S::F {
+    let c00 = lerp::<S>(c[0], c[1], fx);
+    let c10 = lerp::<S>(c[2], c[3], fx);
+    let c01 = lerp::<S>(c[4], c[5], fx);
+    let c11 = lerp::<S>(c[6], c[7], fx);
+    let c0 = lerp::<S>(c00, c10, fy);
+    let c1 = lerp::<S>(c01, c11, fy);
+    lerp::<S>(c0, c1, fz)
+}
+
 /// Where the ray `o + d·t` (one axis; `inv_d` = 1/d) leaves the cube of
 /// blocks within `r − 1` of block `b` (blocks of edge `bs`): its far face,
 /// `b + r` going up, `b − r + 1` going down (∞ where the ray runs parallel
@@ -135,7 +148,13 @@ impl<S: Simd> Vol<S> {
     /// corner is element `base`, at fractions `f`.
     #[inline(always)]
     unsafe fn cell<T: Voxel>(&self, base: S::I, f: [S::F; 3]) -> S::F {
-        let [fx, fy, fz] = f;
+        trilinear::<S>(self.corners::<T>(base), f)
+    }
+
+    /// The eight corners, in stored units, of the cell whose lower corner
+    /// is element `base`: `c[x + 2y + 4z]`.
+    #[inline(always)]
+    unsafe fn corners<T: Voxel>(&self, base: S::I) -> [S::F; 8] {
         let (c000, c100, c010, c110, c001, c101, c011, c111);
         if T::KIND == VoxelKind::U8 {
             // Two gathers: rows y and y + 1 of the z-paired copy.
@@ -157,13 +176,17 @@ impl<S: Simd> Vol<S> {
             (c001, c101) = pair::<S, T>(d, n, base + self.sz);
             (c011, c111) = pair::<S, T>(d, n, base + self.sy + self.sz);
         }
-        let c00 = lerp::<S>(c000, c100, fx);
-        let c10 = lerp::<S>(c010, c110, fx);
-        let c01 = lerp::<S>(c001, c101, fx);
-        let c11 = lerp::<S>(c011, c111, fx);
-        let c0 = lerp::<S>(c00, c10, fy);
-        let c1 = lerp::<S>(c01, c11, fy);
-        lerp::<S>(c0, c1, fz)
+        [c000, c100, c010, c110, c001, c101, c011, c111]
+    }
+
+    /// The difference of the trilinear values of the cells at elements
+    /// `a` and `b`, at the same fractions `f`: the trilinear value of the
+    /// corners' differences (exact for integer voxels), one interpolation
+    /// instead of two.
+    #[inline(always)]
+    unsafe fn cell_diff<T: Voxel>(&self, a: S::I, b: S::I, f: [S::F; 3]) -> S::F {
+        let (ca, cb) = (self.corners::<T>(a), self.corners::<T>(b));
+        trilinear::<S>(std::array::from_fn(|i| ca[i] - cb[i]), f)
     }
 
     /// The normalised trilinear value at `p` (voxel coordinates),
@@ -212,9 +235,9 @@ impl<S: Simd> Vol<S> {
         let (base, f) = self.locate(p);
         let base = S::blend_i(m, self.inner, base);
         let (dx, dy, dz) = (S::splat_i(1), self.sy, self.sz);
-        let gx = self.cell::<T>(base + dx, f) - self.cell::<T>(base - dx, f);
-        let gy = self.cell::<T>(base + dy, f) - self.cell::<T>(base - dy, f);
-        let gz = self.cell::<T>(base + dz, f) - self.cell::<T>(base - dz, f);
+        let gx = self.cell_diff::<T>(base + dx, base - dx, f);
+        let gy = self.cell_diff::<T>(base + dy, base - dy, f);
+        let gz = self.cell_diff::<T>(base + dz, base - dz, f);
         let hs = self.half_scale;
         [gx * hs, gy * hs, gz * hs]
     }
