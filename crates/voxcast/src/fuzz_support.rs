@@ -26,10 +26,12 @@
 //! The raw target starts with a 34-byte layout instead (see
 //! [`Target::Raw`]).
 
+use crate::camera::CameraParams;
 use crate::error::Result;
 use crate::geometry::file::GeometryDef;
 use crate::geometry::Geometry;
 use crate::io::{self, OpenOptions, RawLayout};
+use crate::render::RenderParams;
 use crate::scene::Scene;
 use crate::transfer::{Lut, TransferFunction};
 use crate::volume::{ScalarType, Volume, VoxelData};
@@ -104,7 +106,9 @@ pub enum Target {
     /// a part's name). `ZarrStore::open` and its summary; per level the
     /// first chunks' value ranges and voxels (chunks of up to
     /// [`ZARR_READ_LIMIT`] bytes decoded: the reader takes chunks of up to
-    /// 4 GiB); `io::open` where level 0 is within that limit too.
+    /// 4 GiB); `io::open` where level 0 is within that limit too; and a
+    /// tiny out-of-core render of the coarsest level of at most
+    /// [`ZARR_RENDER_CHUNKS`] such chunks, under a budget of three.
     Zarr,
 }
 
@@ -112,6 +116,11 @@ pub enum Target {
 /// has read: a store may rightly claim gigabytes of fill value in a few
 /// bytes of metadata, which is not a bug to find.
 pub const ZARR_READ_LIMIT: u64 = 64 << 20;
+
+/// The most chunks of a Zarr level the fuzz target renders through the
+/// out-of-core renderer (a store may claim 2³² chunks of fill value, which
+/// the renderer would visit one by one).
+pub const ZARR_RENDER_CHUNKS: u64 = 4096;
 
 impl Target {
     /// Every target, in the order `fuzz/run.sh` runs them.
@@ -447,6 +456,56 @@ fn zarr_store(p: &Path, out: &mut Vec<Outcome>) {
     if store.levels()[0].bytes(ty) <= ZARR_READ_LIMIT {
         out.push(io::open(p, &OpenOptions::default()).map(describe));
     }
+    out.push(zarr_render(&store));
+}
+
+/// Renders the coarsest level of `store` that has at most
+/// [`ZARR_RENDER_CHUNKS`] chunks of at most [`ZARR_READ_LIMIT`] bytes
+/// through the out-of-core renderer: a tiny image, shaded (bricks with a
+/// border), under a budget of a few chunks, so chunks are read, evicted and
+/// read again.
+fn zarr_render(store: &io::zarr::ZarrStore) -> Outcome {
+    use crate::render::outofcore::{render_chunked, OutOfCoreParams};
+    use crate::volume::chunked::ChunkedSource;
+    let ty = store.scalar_type();
+    let levels = store.levels();
+    let Some(level) = (0..levels.len()).rev().find(|&i| {
+        let l = &levels[i];
+        l.chunk_total().is_some_and(|n| n <= ZARR_RENDER_CHUNKS)
+            && l.chunk_bytes(ty) <= ZARR_READ_LIMIT
+    }) else {
+        return Ok("no level small enough to render".into());
+    };
+    let chunk = levels[level].chunk_bytes(ty);
+    let ooc = OutOfCoreParams {
+        budget: chunk.saturating_mul(3).max(1 << 16),
+        level: Some(level),
+        lod_scale: 1.0,
+        prefetch: false,
+    };
+    let params = RenderParams {
+        width: 8,
+        height: 6,
+        shading: true,
+        ..Default::default()
+    };
+    let tf = TransferFunction::preset("grayscale").expect("the grayscale preset");
+    let window = store.value_range().unwrap_or([0.0, 255.0]);
+    let (img, _, st) = render_chunked(
+        store,
+        &tf,
+        window,
+        &CameraParams::default(),
+        &params,
+        &ooc,
+        &|_, _| {},
+        &std::sync::atomic::AtomicBool::new(false),
+    )?;
+    let sum: f32 = img.pixels.iter().map(|p| p[0] + p[3]).sum();
+    Ok(format!(
+        "level {level}: {}×{} image, sum {sum}, {} bytes read",
+        img.width, img.height, st.bytes_read
+    ))
 }
 
 /// Bakes and evaluates a transfer function the way a render does.
@@ -618,10 +677,14 @@ mod tests {
         ] {
             let out = run(Target::Zarr, &input(name));
             assert!(out.iter().all(|o| o.is_ok()), "{name}: {out:?}");
-            // Summary, then ranges and voxels of chunks, then the volume.
-            assert!(out.len() >= 4, "{name}: {out:?}");
-            let last = out.last().unwrap().as_ref().unwrap();
-            assert_eq!(last, read, "{name}");
+            // Summary, then ranges and voxels of chunks, then the volume,
+            // then the out-of-core render of the coarsest level.
+            assert!(out.len() >= 5, "{name}: {out:?}");
+            let volume = out[out.len() - 2].as_ref().unwrap();
+            assert_eq!(volume, read, "{name}");
+            let render = out.last().unwrap().as_ref().unwrap();
+            assert!(render.contains(": 8×6 image"), "{name}: {render}");
+            assert!(!render.contains(" 0 bytes read"), "{name}: {render}");
         }
         let bad = run(Target::Zarr, &input("hostile-chunk-product-overflows"));
         assert_eq!(bad.len(), 1, "{bad:?}");
@@ -644,6 +707,8 @@ mod tests {
             .flatten()
             .filter(|o| o.contains("16777216 voxels"));
         assert_eq!(chunks.count(), 3, "{fill:?}");
+        let render = fill.last().unwrap().as_ref().unwrap();
+        assert_eq!(render, "no level small enough to render");
     }
 
     #[test]
