@@ -674,6 +674,10 @@ mod tests {
         for (name, read) in [
             ("seed-v3_gzip_two_levels", "[4, 4, 4] U8"),
             ("seed-v2_u16", "[5, 4, 3] U16"),
+            // Written by `voxcast convert builtin:fractal --dims 12,10,8
+            // --type u16 --chunk 4 --levels 2 --compression zstd|blosc`.
+            ("seed-v3_zstd_converted", "[12, 10, 8] U16"),
+            ("seed-v3_blosc_converted", "[12, 10, 8] U16"),
         ] {
             let out = run(Target::Zarr, &input(name));
             assert!(out.iter().all(|o| o.is_ok()), "{name}: {out:?}");
@@ -709,6 +713,28 @@ mod tests {
         assert_eq!(chunks.count(), 3, "{fill:?}");
         let render = fill.last().unwrap().as_ref().unwrap();
         assert_eq!(render, "no level small enough to render");
+        // A garbled zstd chunk and a truncated blosc one, in the coarsest
+        // level: reading that chunk and the render each fail naming the
+        // chunk file and the codec's complaint; the other chunks read.
+        for (name, why) in [
+            ("hostile-zstd-chunk-bytes-garbled", "Data corruption"),
+            ("hostile-blosc-chunk-truncated", "blosc"),
+        ] {
+            let out = run(Target::Zarr, &input(name));
+            let errs: Vec<String> = out
+                .iter()
+                .filter_map(|o| o.as_ref().err().map(|e| e.to_string()))
+                .collect();
+            assert_eq!(errs.len(), 2, "{name}: {out:?}");
+            for e in &errs {
+                assert!(
+                    e.contains("chunk file 1/c/0/0/0") && e.contains(why),
+                    "{name}: {e}"
+                );
+            }
+            assert!(out.last().unwrap().is_err(), "{name}: the render fails");
+            assert!(oks(&out) >= 10, "{name}: {out:?}");
+        }
     }
 
     #[test]
