@@ -62,7 +62,6 @@ pub(super) struct VBlocks<S: Simd> {
     inv_d: [S::F; 3],
     sgn: [S::I; 3],
     up: [S::F; 3],
-    moving: [S::M; 3],
     size: S::F,
     last: [S::I; 3],
     ncx: S::I,
@@ -119,22 +118,11 @@ impl<S: Simd> VBlocks<S> {
             inv_d,
             sgn,
             up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
-            moving: [0, 1, 2].map(|c| S::or(S::gt(d[c], zero), S::lt(d[c], zero))),
             size: S::splat(size as f32),
             last: counts.map(|n| S::splat_i(n as i32 - 1)),
             ncx: S::splat_i(counts[0] as i32),
             ncy: S::splat_i(counts[1] as i32),
         }
-    }
-
-    /// Where the ray leaves block `b` on axis `c` (`BlockWalker`'s
-    /// `crossing`: the far plane's `(plane − o)·(1/d)`; ∞ where the ray
-    /// does not move on that axis).
-    #[inline(always)]
-    unsafe fn crossing(&self, c: usize, b: S::I) -> S::F {
-        let plane = (S::to_f(b) + self.up[c]) * self.size;
-        let t = (plane - self.o[c]) * self.inv_d[c];
-        S::blend(self.moving[c], S::splat(f32::INFINITY), t)
     }
 
     /// One block for each lane of `m` (lanes whose walk is not over, `t <
@@ -155,21 +143,30 @@ impl<S: Simd> VBlocks<S> {
         let [bx, by, bz] = self.blk;
         let b = S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)));
         self.t = S::blend(m, self.t, tb);
+        // Each lane moves on one axis: that axis's block, direction,
+        // bounds and plane, picked lane by lane, and one crossing.
+        let pick = |v: [S::F; 3]| S::blend(ax0, S::blend(ax1, v[2], v[1]), v[0]);
+        let pick_i = |v: [S::I; 3]| S::blend_i(ax0, S::blend_i(ax1, v[2], v[1]), v[0]);
+        let bc = pick_i(self.blk);
+        let sg = pick_i(self.sgn);
+        let nb = bc + sg;
+        let outside = S::or(
+            S::positive(S::splat_i(0) - nb),
+            S::positive(nb - pick_i(self.last)),
+        );
+        // Past the grid on this axis: the walk stays in the edge block,
+        // with no more crossings on it.
+        let nb = S::blend_i(outside, nb, bc);
+        let plane = (S::to_f(nb) + pick(self.up)) * self.size;
+        // `BlockWalker`'s `crossing`: the far plane's `(plane − o)·(1/d)`;
+        // ∞ where the ray does not move on that axis.
+        let tc = (plane - pick(self.o)) * pick(self.inv_d);
+        let moving = S::or(S::positive(sg), S::positive(S::splat_i(0) - sg));
+        let tc = S::blend(S::but(moving, outside), S::splat(f32::INFINITY), tc);
         for (c, axc) in ax.into_iter().enumerate() {
             let mc = S::and(m, axc);
-            let nb = S::blend_i(mc, self.blk[c], self.blk[c] + self.sgn[c]);
-            let outside = S::and(
-                mc,
-                S::or(
-                    S::positive(S::splat_i(0) - nb),
-                    S::positive(nb - self.last[c]),
-                ),
-            );
-            // Past the grid on this axis: the walk stays in the edge
-            // block, with no more crossings on it.
-            self.blk[c] = S::blend_i(outside, nb, nb - self.sgn[c]);
-            let tm = S::blend(mc, self.tmax[c], self.crossing(c, self.blk[c]));
-            self.tmax[c] = S::blend(outside, tm, S::splat(f32::INFINITY));
+            self.blk[c] = S::blend_i(mc, self.blk[c], nb);
+            self.tmax[c] = S::blend(mc, self.tmax[c], tc);
         }
         (ta, tb, b)
     }
