@@ -65,8 +65,9 @@ pub(super) struct VImp<'a, S: Simd> {
 
 impl<'a, S: Simd> VImp<'a, S> {
     /// The walks of `st.imp`'s lanes on the rays `o + d·t` (`inv_d =
-    /// 1/d`; `rays.t0` unused), and the lanes' state before their first stretch: `(t −
-    /// tb)/s` is each lane's ξ, the CDF offset [`VImp::next`] carries.
+    /// 1/d`; `rays.t0` unused), and the lanes' state before their first
+    /// stretch: `(t − tb)/s` is each lane's ξ, the CDF offset
+    /// [`VImp::next`] carries.
     ///
     /// # Safety
     /// The width's instructions.

@@ -180,9 +180,10 @@ impl<S: Simd> Vol<S> {
     }
 
     /// The difference of the trilinear values of the cells at elements
-    /// `a` and `b`, at the same fractions `f`: the trilinear value of the
-    /// corners' differences (exact for integer voxels), one interpolation
-    /// instead of two.
+    /// `a` and `b`, at the same fractions `f`, as the trilinear value of
+    /// the corners' differences: one interpolation instead of two (the
+    /// same value to a rounding; the differences themselves are exact for
+    /// integer voxels).
     #[inline(always)]
     unsafe fn cell_diff<T: Voxel>(&self, a: S::I, b: S::I, f: [S::F; 3]) -> S::F {
         let (ca, cb) = (self.corners::<T>(a), self.corners::<T>(b));
