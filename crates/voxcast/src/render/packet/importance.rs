@@ -90,9 +90,7 @@ impl<'a, S: Simd> VImp<'a, S> {
         let w = VBlocks::new(&lanes, counts, size, rays);
         let is = ImpState {
             t: S::load(xi),
-            s: S::splat(1.0),
-            tb: S::splat(0.0),
-            off: S::splat_i(0),
+            ..ImpState::idle()
         };
         let tau = S::splat(0.0);
         (VImp { ip, w, tau }, is)
@@ -131,11 +129,12 @@ impl<'a, S: Simd> VImp<'a, S> {
             let b2 = b + b;
             let level = S::gather_f::<4>(pdf, b2);
             let sigma = S::gather_f::<4>(pdf.add(1), b2);
+            // `.min(MAX_LEVEL) as u8`: capped as a float (a large value
+            // would not convert; `min` gives `top` for a NaN), then at 0
+            // (the lanes without mass, whose level is negative, still
+            // gather a step).
             let x = S::min(level + beta * self.tau, top);
-            let jb = S::max_i(
-                S::min_i(S::to_i(x), S::splat_i(MAX_LEVEL as i32)),
-                S::splat_i(0),
-            );
+            let jb = S::max_i(S::to_i(x), S::splat_i(0));
             self.tau = S::blend(m, self.tau, self.tau + sigma * (tb - ta));
             let mass = S::but(m, S::lt(level, zero));
             if S::bits(mass) == 0 {
