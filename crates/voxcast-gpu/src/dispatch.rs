@@ -24,6 +24,7 @@ impl GpuRenderer {
     ) -> Result<(Image, RenderStats), GpuError> {
         params.validate_for(&self.volume)?;
         camera.validate().map_err(voxcast::Error::from)?;
+        let params = &*params.in_opacity_units(&self.volume);
         let method = method_code(params.method)?;
         let physical = params.method.is_physical();
         let geometry = self.geometry.as_ref().filter(|g| !g.is_empty());

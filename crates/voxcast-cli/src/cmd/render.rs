@@ -22,18 +22,28 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mut scene = a.scene()?;
     // A chunked store: the level the camera needs, read whole if it fits
     // the memory budget, else rendered out of core.
+    let mut level_read_whole = false;
     match super::render_chunked::plan(&a, &scene)? {
         Some(super::render_chunked::Plan::OutOfCore(store, ooc)) => {
             return super::render_chunked::run(&a, &scene, &store, &ooc)
         }
-        Some(super::render_chunked::Plan::InCore(level)) => scene.input.options.level = Some(level),
+        Some(super::render_chunked::Plan::InCore(level)) => {
+            scene.input.options.level = Some(level);
+            level_read_whole = true;
+        }
         None => {}
     }
     // Every output is checked before any work, and written only when all
     // of them can be.
     let (mut outputs, out) = plan_outputs(&a, &scene)?;
     let quiet = a.quiet;
-    let prepared = prepare(&scene, &mut outputs, quiet)?;
+    let mut prepared = prepare(&scene, &mut outputs, quiet)?;
+    if level_read_whole {
+        let said = super::render_chunked::match_out_of_core(&scene, &mut prepared)?;
+        if let (Some(said), false) = (said, quiet) {
+            eprintln!("{said}");
+        }
+    }
     if let Some(target) = a.quality {
         // The pilot renders on the CPU, which the GPU matches.
         let renderer = voxcast::render::Renderer::new(&prepared.volume, prepared.window)?

@@ -119,6 +119,45 @@ pub fn prepare_from_proxy(
     Ok((prepared, coarsest))
 }
 
+/// For a level of a chunked store read whole (`prepared`, its volume that
+/// level): the transfer function and window the out-of-core renderer takes
+/// ([`prepare_from_proxy`]: the automatic choices from the same stand-in
+/// level, the window over level 0's value range), so that a level looks
+/// the same read whole as out of core. Before, an automatic transfer
+/// function followed the level's own histogram and the window its own
+/// range (a coarse level's means are narrower): level 1 of the demo store
+/// was 51 dB from out of core, level 2 41 dB.
+/// Returns what changed, to tell the user (`None`: nothing).
+pub fn match_out_of_core(
+    scene: &Scene,
+    prepared: &mut voxcast::scene::Prepared,
+) -> Result<Option<String>> {
+    let path = Path::new(&scene.input.path);
+    let store = ZarrStore::open_with(path, &scene.input.options)?;
+    let level = scene.input.options.level.unwrap_or(0);
+    let coarsest = store
+        .finest_within(PROXY_BYTES)
+        .unwrap_or(store.levels().len() - 1);
+    let (tf, window) = (prepared.tf.clone(), prepared.window);
+    if coarsest != level {
+        let from = scene.prepare_with(store.read_level(coarsest)?)?;
+        prepared.tf = from.tf;
+        prepared.window = from.window;
+    }
+    if scene.transfer.window.is_none() && prepared.tf.window.is_none() {
+        if let Some(r) = store.value_range() {
+            prepared.window = r;
+        }
+    }
+    let said = (prepared.tf != tf || prepared.window != window).then(|| {
+        format!(
+            "transfer function from level {coarsest} and window [{}, {}] from level 0's value range, as out of core",
+            prepared.window[0], prepared.window[1]
+        )
+    });
+    Ok(said)
+}
+
 /// Renders `store` out of core and writes the outputs `a` asks for.
 pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCoreParams) -> Result<()> {
     if a.quality.is_some() {

@@ -239,6 +239,7 @@ impl<'v> Renderer<'v> {
     ) -> Result<(Image, RenderStats)> {
         params.validate_for(self.volume)?;
         camera.validate()?;
+        let params = &*params.in_opacity_units(self.volume);
         let start = Instant::now();
         let volume = self.volume;
         let (mut lo, mut hi) = volume.frame_bounds();
