@@ -259,9 +259,11 @@ fn packets_give_the_scalar_pixels() {
 /// empty blocks up to four blocks from anything visible between them,
 /// and the rays cross those stretches at every angle; at every level this
 /// CPU has, the packets give the scalar pixels with the same samples
-/// (a jump passes only samples the scalar march skips too); and
+/// (a jump passes only samples the scalar march skips too);
 /// `importance`'s vector walks, through the same long empty stretches,
-/// give the scalar walk's samples.
+/// give the scalar walk's samples; and `lod`'s leaf walks, which jump the
+/// same cubes where nothing is pending, give the scalar octree walk's
+/// pixels and samples.
 #[test]
 fn packets_jump_the_empty_space_and_keep_the_samples() {
     use voxcast::volume::VoxelData;
@@ -308,6 +310,8 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             (Method::Uniform, true),
             (Method::Importance, false),
             (Method::Importance, true),
+            (Method::Lod, false),
+            (Method::Lod, true),
         ] {
             let mut p = RenderParams {
                 width: 64,
@@ -383,6 +387,7 @@ fn step_per_block_packets_give_the_scalar_pixels() {
             (Method::AdaptiveS0, true),
             (Method::AdaptiveMax, false),
             (Method::Uniform, true),
+            (Method::Lod, false),
         ] {
             // Blocks of 4 leave empty blocks between the blobs and behind
             // them, where runs end and walks finish.

@@ -533,6 +533,9 @@ impl Job<'_> {
             Method::Lod => {
                 let tree = self.tree.expect("the octree is built for lod");
                 let m = lod::LodRay::new(tree, &self.empty, &self.lut, &p.lod, p.step, self.unit);
+                if let Some(out) = self.lod_packets(f, &m) {
+                    return out;
+                }
                 self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
             }
             // Rendered by `path::render` before a Job is made.
@@ -607,12 +610,70 @@ impl Job<'_> {
                 grouped,
                 walk: &walk,
                 vector: packet::vector_params(m, &k, f.skip_empty, grouped),
+                lod: None,
             };
             if let Some(out) = self.packets(f, t, None, Some(&runs)) {
                 return out;
             }
         }
         self.grouped::<T, C, Sh, _>(f, sh, m)
+    }
+
+    /// `lod` (`m`) in the SIMD ray packets, where the CPU and the render
+    /// allow: its spacing classes as a step-per-block march's levels,
+    /// walked by the packets' `lod` walk.
+    fn lod_packets<T: Voxel>(
+        &self,
+        f: &Frame<'_, T>,
+        m: &lod::LodRay<'_>,
+    ) -> Option<Option<(Image, RenderStats)>> {
+        packet::level(self.params.simd)?;
+        let p = self.params;
+        let k = [p.lod.high, p.lod.low, p.lod.sparse].map(|k| k as f32 * p.step);
+        let level_tables: Vec<_> = k.iter().map(|&r| self.lut.premultiplied(r)).collect();
+        let tables: Vec<[f32; 4]> = level_tables
+            .iter()
+            .flat_map(|q| q.iter().copied())
+            .collect();
+        // Per leaf its amount of cloud, or where transparent minus its
+        // skip distance (−1 without skipping): one gather.
+        let dist = f.skip_empty.then(|| self.derived.skip_distances(f.empty));
+        let amount: Vec<f32> = m
+            .amount
+            .iter()
+            .zip(f.empty)
+            .enumerate()
+            .map(|(b, (&a, &e))| match (e, &dist) {
+                (false, _) => a,
+                (true, Some(d)) => -(d[b].max(1) as f32),
+                (true, None) => -1.0,
+            })
+            .collect();
+        let t = Tables {
+            level_lo: 0,
+            level_hi: 2,
+            level_steps: m.steps.to_vec(),
+            level_tables,
+        };
+        // The scalar walk of a step-per-block march never runs for `lod`.
+        let walk = |_: &Frame<'_, T>,
+                    _: &mut march::RunWalk,
+                    _: &mut composite::Front,
+                    _: &mut ray::Counters| march::Next::Ended;
+        let runs = packet::Adapt {
+            level_steps: &m.steps,
+            tables: &tables,
+            grouped: false,
+            walk: &walk,
+            vector: None,
+            lod: Some(packet::VLodParams {
+                amount: &amount,
+                threshold: m.threshold,
+                steps: m.steps,
+                skip_empty: f.skip_empty,
+            }),
+        };
+        self.packets(f, &t, None, Some(&runs))
     }
 
     /// A render through the SIMD ray packets (packet/) — a fixed step,

@@ -124,7 +124,7 @@ impl<'a, S: Simd> VImp<'a, S> {
             if S::bits(m) == 0 {
                 break;
             }
-            let (ta, tb, b) = self.w.step(m);
+            let (ta, tb, b, _) = self.w.step(m);
             // `PdfBlock` is two floats: level, mean extinction.
             let b2 = b + b;
             let level = S::gather_f::<4>(pdf, b2);

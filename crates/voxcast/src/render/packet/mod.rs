@@ -47,6 +47,7 @@ use super::stats::RenderStats;
 use super::surface::{self, SurfaceCtx};
 mod distance;
 mod importance;
+mod lod;
 mod runs;
 mod shade;
 
@@ -57,6 +58,7 @@ pub(in crate::render) use distance::{distances_in_place, skip_distances};
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
+pub(in crate::render) use lod::VLodParams;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one

@@ -3,6 +3,7 @@
 //! exits of empty-space skipping, shading and the marching loop.
 
 use super::importance::{ImpState, VImp};
+use super::lod::VLod;
 use super::shade::{Deferred, Light};
 use super::simd::{Simd, W16, W8};
 use super::vwalk::{Rays, VWalk};
@@ -449,8 +450,19 @@ unsafe fn march<
     // step-per-block march's wait in their lane's slot (a sample's colour
     // is composited at several steps: reuses, the run's end) when the
     // walk is the vector one (whose run ends add to the slot).
+    // `lod`'s walk (its runs are the step-per-block ones).
+    let mut vl = match pk.runs.and_then(|r| r.lod()) {
+        Some(p) if R::ON => Some(VLod::<S>::new(
+            p,
+            st,
+            f.block_counts,
+            f.block_size,
+            Rays { o, d, inv_d, t0 },
+        )),
+        _ => None,
+    };
     let defer = SHADE && !R::ON;
-    let defer_runs = SHADE && R::ON && vw.is_some();
+    let defer_runs = SHADE && R::ON && (vw.is_some() || vl.is_some());
     let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]), defer_runs);
     let stv = S::splat(pk.st);
     let top = S::splat((crate::transfer::LUT_SIZE - 1) as f32);
@@ -523,9 +535,10 @@ unsafe fn march<
             let need = S::and(live, S::ge(kv, rr.kend));
             let bits = S::bits(need);
             if bits != 0 {
-                let (ended, dead) = match vw.as_mut() {
-                    Some(vw) => vw.next(pk, need, &mut rr, &mut kv, &mut col),
-                    None => walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col),
+                let (ended, dead) = match (vl.as_mut(), vw.as_mut()) {
+                    (Some(vl), _) => vl.next(pk, need, &mut rr, &mut kv, &mut col),
+                    (None, Some(vw)) => vw.next(pk, need, &mut rr, &mut kv, &mut col),
+                    (None, None) => walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col),
                 };
                 live = S::but(live, S::or(ended, dead));
                 walked = S::or(walked, ended);

@@ -59,6 +59,7 @@ pub(super) struct VBlocks<S: Simd> {
     pub t: S::F,
     pub t_out: S::F,
     o: [S::F; 3],
+    d: [S::F; 3],
     inv_d: [S::F; 3],
     sgn: [S::I; 3],
     up: [S::F; 3],
@@ -115,6 +116,7 @@ impl<S: Simd> VBlocks<S> {
             t: S::load(a[3]),
             t_out: S::load(a[4]),
             o,
+            d,
             inv_d,
             sgn,
             up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
@@ -126,13 +128,13 @@ impl<S: Simd> VBlocks<S> {
     }
 
     /// One block for each lane of `m` (lanes whose walk is not over, `t <
-    /// t_out`): where the lane enters and leaves it, and its index; the
-    /// lanes move on to their next block.
+    /// t_out`): where the lane enters and leaves it, its index and its
+    /// place on each axis; the lanes move on to their next block.
     ///
     /// # Safety
     /// The width's instructions.
     #[inline(always)]
-    pub unsafe fn step(&mut self, m: S::M) -> (S::F, S::F, S::I) {
+    pub unsafe fn step(&mut self, m: S::M) -> (S::F, S::F, S::I, [S::I; 3]) {
         let [t0m, t1m, t2m] = self.tmax;
         let ax0 = S::and(S::ge(t1m, t0m), S::ge(t2m, t0m));
         let ax1 = S::but(S::ge(t2m, t1m), ax0);
@@ -168,7 +170,79 @@ impl<S: Simd> VBlocks<S> {
             self.blk[c] = S::blend_i(mc, self.blk[c], nb);
             self.tmax[c] = S::blend(mc, self.tmax[c], tc);
         }
-        (ta, tb, b)
+        (ta, tb, b, [bx, by, bz])
+    }
+
+    /// Where a lane crosses the far plane of its block `j` on axis `c`,
+    /// as [`VBlocks::step`] computes it (∞ where it does not move on it).
+    #[inline(always)]
+    unsafe fn crossing(&self, c: usize, j: S::I) -> S::F {
+        let x = ((S::to_f(j) + self.up[c]) * self.size - self.o[c]) * self.inv_d[c];
+        let sg = self.sgn[c];
+        let moving = S::or(S::positive(sg), S::positive(S::splat_i(0) - sg));
+        S::blend(moving, S::splat(f32::INFINITY), x)
+    }
+
+    /// The lanes of `m`, just past block `b3` (the last [`VBlocks::step`]
+    /// gave them), which lies at the centre of an empty cube of blocks
+    /// (those within `r − 1` of it on every axis, `r ≥ 1`), go on to the
+    /// first block past the cube in one move: the state `step` leaves
+    /// after crossing every block of the cube on the ray. That is, `t` at
+    /// the cube's exit `te` (the nearest of its far faces, the far plane
+    /// of block `b3 + sgn·(r − 1)` on each axis), and on each axis the
+    /// block past every plane the ray crosses by `te` with its far
+    /// crossing, both as `step` computes them, so the walk goes on with
+    /// the very values the block-by-block walk would have. Lanes whose ray
+    /// ends inside the cube end their walk (`t = t_out`).
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub unsafe fn jump(&mut self, m: S::M, b3: [S::I; 3], r: S::I) {
+        let one = S::splat_i(1);
+        let mut te = S::splat(f32::INFINITY);
+        for (c, &b) in b3.iter().enumerate() {
+            let far = b + S::mullo(self.sgn[c], r - one);
+            te = S::min(te, self.crossing(c, far));
+        }
+        let over = S::and(m, S::ge(te, self.t_out));
+        self.t = S::blend(over, self.t, self.t_out);
+        let go = S::but(m, over);
+        if S::bits(go) == 0 {
+            return;
+        }
+        let zero = S::splat(0.0);
+        let inv_size = S::splat(1.0) / self.size;
+        for c in 0..3 {
+            let sg = self.sgn[c];
+            let mv = S::and(go, S::or(S::positive(sg), S::positive(S::splat_i(0) - sg)));
+            if S::bits(mv) == 0 {
+                continue;
+            }
+            // The block at the exit's position (on a face, the one the
+            // ray enters), then set right against the crossings where
+            // the position's rounding put it one off: the ray has crossed
+            // the far plane of the block before it and not its own.
+            let q = (self.o[c] + self.d[c] * te) * inv_size;
+            let down = S::lt(self.d[c], zero);
+            let mut j = S::to_i(S::blend(down, S::floor(q), S::ceil(q) - S::splat(1.0)));
+            let crossed = S::ge(te, self.crossing(c, j));
+            j = S::blend_i(crossed, j, j + sg);
+            let before = S::lt(te, self.crossing(c, j - sg));
+            j = S::blend_i(before, j, j - sg);
+            // Past the grid (by a rounding; the ray is inside, `te <
+            // t_out`): the edge block, with no more crossings, as `step`
+            // stays there.
+            let outside = S::or(
+                S::positive(S::splat_i(0) - j),
+                S::positive(j - self.last[c]),
+            );
+            let j = S::min_i(S::max_i(j, S::splat_i(0)), self.last[c]);
+            let tm = S::blend(outside, self.crossing(c, j), S::splat(f32::INFINITY));
+            self.blk[c] = S::blend_i(mv, self.blk[c], j);
+            self.tmax[c] = S::blend(mv, self.tmax[c], tm);
+        }
+        self.t = S::blend(go, self.t, te);
     }
 }
 
@@ -362,7 +436,7 @@ impl<'a, S: Simd> VWalk<'a, S> {
                 break;
             }
             // One block per lane (`BlockWalker::next`).
-            let (ta, tb, b) = self.w.step(m);
+            let (ta, tb, b, _) = self.w.step(m);
             let (qa, qb) = (self.q, (tb - self.t0) / self.s0);
             self.q = S::blend(m, self.q, qb);
             // Past the walk's end with no run: over.
@@ -445,7 +519,7 @@ unsafe fn pow2<S: Simd>(j: S::F) -> S::F {
 /// longer hold) into `col` over its stretch up to `t_next` (past the
 /// sample where `to_exit`); returns those that terminated.
 #[inline(always)]
-unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
+pub(super) unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
     pk: &Packets<'_, T, R>,
     m: S::M,
     t_next: S::F,
