@@ -18,8 +18,7 @@ mod threshold;
 #[cfg(test)]
 pub(super) use steps::{classified_level, round_log2};
 pub(super) use steps::{
-    flush, stretch_alpha, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk,
-    Steps, VRule,
+    BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
 };
 pub(super) use threshold::Threshold;
 

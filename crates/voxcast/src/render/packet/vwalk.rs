@@ -20,12 +20,9 @@
 use super::simd::Simd;
 use super::walk::{RunRegs, SLOT_W};
 use super::{Packets, Runs, State, LANES};
-use crate::render::composite::Front;
-use crate::render::march::{flush, stretch_alpha, Pending, VRule};
-use crate::render::ray::Composite;
+use crate::render::march::VRule;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
-use glam::{Vec3, Vec4};
 
 /// What the vector walk reads of a step-per-block march.
 #[derive(Clone, Copy)]
@@ -517,7 +514,11 @@ unsafe fn pow2<S: Simd>(j: S::F) -> S::F {
 
 /// The lanes of `m` composite their pending sample (`rr`'s, which they no
 /// longer hold) into `col` over its stretch up to `t_next` (past the
-/// sample where `to_exit`); returns those that terminated.
+/// sample where `to_exit`); returns those that terminated. In registers,
+/// `march::flush` lane by lane: the opacity `1 − exp(−σ·Δt/unit)` of the
+/// stretch (by [`exp`]), the colour scaled with it — or, with shading
+/// deferred, the weight it gains in the lane's slot, the opacity
+/// composited now.
 #[inline(always)]
 pub(super) unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
     pk: &Packets<'_, T, R>,
@@ -527,51 +528,59 @@ pub(super) unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
     rr: &mut RunRegs<S>,
     col: &mut [S::F; 4],
 ) -> S::M {
-    let bits = S::bits(S::and(m, rr.pend_ok));
+    let m2 = S::and(m, rr.pend_ok);
     rr.pend_ok = S::but(rr.pend_ok, m);
-    if bits == 0 {
+    if S::bits(m2) == 0 {
         return S::from_bits(0);
     }
-    let mut c4 = col.map(|v| S::store(v));
-    let pend = rr.pend.map(|v| S::store(v));
-    let idx = S::store_i(rr.pend_idx);
-    let tn = S::store(t_next);
-    let mut w = S::store(rr.slot[SLOT_W]);
-    let mut dead = 0u32;
-    for i in 0..S::N {
-        if (bits >> i) & 1 == 0 {
-            continue;
-        }
-        let p = Pending {
-            t: pend[4][i],
-            entry: idx[i] as usize,
-            e: Vec3::new(pend[0][i], pend[1][i], pend[2][i]),
-            a: pend[3][i],
-        };
-        let acc = Vec4::new(c4[0][i], c4[1][i], c4[2][i], c4[3][i]);
-        let mut c = Front::resume(acc, pk.weights, pk.stop);
-        let t = if to_exit { tn[i].max(p.t) } else { tn[i] };
-        if rr.defer {
-            // The colour waits, unshaded, in the lane's slot: it gains
-            // the weight `flush` would give it; the opacity goes on now.
-            let alpha = stretch_alpha(pk.f, &p, t);
-            if alpha > 0.0 {
-                w[i] += pk.weights.emission * (1.0 - acc.w) * (alpha / p.a);
-                if c.add_premul(Vec3::ZERO, alpha) {
-                    dead |= 1 << i;
-                }
-            }
-        } else if flush(pk.f, p, t, &mut c) {
-            dead |= 1 << i;
-        }
-        let acc = c.acc();
-        for (k, v) in [acc.x, acc.y, acc.z, acc.w].into_iter().enumerate() {
-            c4[k][i] = v;
+    let zero = S::splat(0.0);
+    let one = S::splat(1.0);
+    let t = if to_exit {
+        S::max(t_next, rr.pend[4])
+    } else {
+        t_next
+    };
+    // `stretch_alpha`: 0 where the sample is transparent.
+    let sigma = S::gather_f::<4>(pk.f.lut.sigmas().as_ptr(), rr.pend_idx);
+    let x = zero - sigma * (t - rr.pend[4]) / S::splat(pk.f.unit);
+    let a = rr.pend[3];
+    let alpha = S::keep(S::gt(a, zero), one - exp::<S>(x));
+    let show = S::and(m2, S::gt(alpha, zero));
+    if S::bits(show) == 0 {
+        return S::from_bits(0);
+    }
+    let (we, wa) = (
+        S::splat(pk.weights.emission),
+        S::splat(pk.weights.absorption),
+    );
+    let tr = one - col[3];
+    let r = alpha / a;
+    if rr.defer {
+        let w = &mut rr.slot[SLOT_W];
+        *w = S::blend(show, *w, *w + we * tr * r);
+    } else {
+        for c in 0..3 {
+            let e = rr.pend[c] * r * we;
+            col[c] = S::blend(show, col[c], col[c] + e * tr);
         }
     }
-    for (v, a) in col.iter_mut().zip(c4) {
-        *v = S::load(a);
+    col[3] = S::blend(show, col[3], col[3] + alpha * wa * tr);
+    S::and(show, S::ge(col[3], S::splat(pk.stop)))
+}
+
+/// `eˣ` for `x ≤ 0`, to a few float roundings: `2ⁿ·e^r`, `n` the nearest
+/// whole number to `x·log₂e`, `r = x − n·ln 2` (in two parts, Cody–Waite)
+/// so `|r| ≤ ln 2 / 2`, and `e^r` by its Taylor polynomial of degree 6
+/// (error below `r⁷/7!` ≈ 1.2·10⁻⁷ relative); `x` below −87 gives
+/// `e⁻⁸⁷` (≈ 0 to an opacity).
+#[inline(always)]
+pub(super) unsafe fn exp<S: Simd>(x: S::F) -> S::F {
+    let x = S::max(x, S::splat(-87.0));
+    let n = S::floor(x * S::splat(std::f32::consts::LOG2_E) + S::splat(0.5));
+    let r = x - n * S::splat(0.693_145_75) - n * S::splat(1.428_606_8e-6);
+    let mut p = S::splat(1.0 / 720.0);
+    for c in [1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0] {
+        p = p * r + S::splat(c);
     }
-    rr.slot[SLOT_W] = S::load(w);
-    S::from_bits(dead)
+    p * S::of_bits(S::sll(S::to_i(n) + S::splat_i(127), 23))
 }
