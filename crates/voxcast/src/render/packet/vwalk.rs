@@ -559,9 +559,8 @@ pub(super) unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
         let w = &mut rr.slot[SLOT_W];
         *w = S::blend(show, *w, *w + we * tr * r);
     } else {
-        for c in 0..3 {
-            let e = rr.pend[c] * r * we;
-            col[c] = S::blend(show, col[c], col[c] + e * tr);
+        for (c, p) in col.iter_mut().zip(&rr.pend[..3]) {
+            *c = S::blend(show, *c, *c + *p * r * we * tr);
         }
     }
     col[3] = S::blend(show, col[3], col[3] + alpha * wa * tr);
