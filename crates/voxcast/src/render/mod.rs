@@ -649,6 +649,8 @@ impl Job<'_> {
                 (true, None) => -1.0,
             })
             .collect();
+        // The classes as levels 0…2 (the packets' fixed-step table and
+        // step are the first's; each lane's run carries its own).
         let t = Tables {
             level_lo: 0,
             level_hi: 2,

@@ -10,9 +10,9 @@
 //! pending last sample of the leaf before, as `LodRay::march` does.
 
 use super::simd::Simd;
-use super::vwalk::{flush_lanes, LaneWalk, Rays, VBlocks};
+use super::vwalk::{flush_lanes, run_walks, Rays, VBlocks};
 use super::walk::RunRegs;
-use super::{Packets, Runs, State, LANES};
+use super::{Packets, Runs, State};
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 
@@ -60,21 +60,13 @@ impl<'a, S: Simd> VLod<'a, S> {
         size: usize,
         rays: Rays<S>,
     ) -> Self {
-        let mut a = [S::Af::default(); 2];
-        let mut lanes: [Option<LaneWalk>; LANES] = [None; LANES];
-        for (i, w) in st.runs.iter().enumerate().take(S::N) {
-            let Some(w) = w else { continue };
-            let (b, tm, t, _) = w.walker.state();
-            lanes[i] = Some((b, tm, t, w.seg.t_out));
-            a[0][i] = w.seg.walk.1;
-            a[1][i] = w.seg.t_end();
-        }
+        let (w, t_stop, t_end) = run_walks(st, counts, size, &rays);
         VLod {
             p,
-            w: VBlocks::new(&lanes, counts, size, &rays),
+            w,
             t0: rays.t0,
-            t_stop: S::load(a[0]),
-            t_end: S::load(a[1]),
+            t_stop,
+            t_end,
             ended: S::from_bits(0),
         }
     }

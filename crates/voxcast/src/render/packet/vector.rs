@@ -445,11 +445,6 @@ unsafe fn march<
         )),
         _ => None,
     };
-    // Shading: deferred where the colour is only summed (see `shade`):
-    // the fixed step's samples go to the queue as they are composited; a
-    // step-per-block march's wait in their lane's slot (a sample's colour
-    // is composited at several steps: reuses, the run's end) when the
-    // walk is the vector one (whose run ends add to the slot).
     // `lod`'s walk (its runs are the step-per-block ones).
     let mut vl = match pk.runs.and_then(|r| r.lod()) {
         Some(p) if R::ON => Some(VLod::<S>::new(
@@ -461,6 +456,11 @@ unsafe fn march<
         )),
         _ => None,
     };
+    // Shading: deferred where the colour is only summed (see `shade`):
+    // the fixed step's samples go to the queue as they are composited; a
+    // step-per-block march's wait in their lane's slot (a sample's colour
+    // is composited at several steps: reuses, the run's end) when the
+    // walk is a vector one (whose run ends add to the slot).
     let defer = SHADE && !R::ON;
     let defer_runs = SHADE && R::ON && (vw.is_some() || vl.is_some());
     let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]), defer_runs);

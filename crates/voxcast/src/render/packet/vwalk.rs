@@ -280,6 +280,36 @@ pub(super) struct Rays<S: Simd> {
     pub t0: S::F,
 }
 
+/// The block walks of the lanes of `st.runs`, each where its `RunWalk`
+/// was set up, on the rays `rays` over `counts` blocks of `size` cells;
+/// and per lane where its walk's stretch with samples ends (`walk.1`) and
+/// its ray's samples end (`Segment::t_end`).
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+pub(super) unsafe fn run_walks<S: Simd>(
+    st: &State<'_>,
+    counts: [usize; 3],
+    size: usize,
+    rays: &Rays<S>,
+) -> (VBlocks<S>, S::F, S::F) {
+    let mut a = [S::Af::default(); 2];
+    let mut lanes: [Option<LaneWalk>; LANES] = [None; LANES];
+    for (i, w) in st.runs.iter().enumerate().take(S::N) {
+        let Some(w) = w else { continue };
+        let (b, tm, t, _) = w.walker.state();
+        lanes[i] = Some((b, tm, t, w.seg.t_out));
+        a[0][i] = w.seg.walk.1;
+        a[1][i] = w.seg.t_end();
+    }
+    (
+        VBlocks::new(&lanes, counts, size, rays),
+        S::load(a[0]),
+        S::load(a[1]),
+    )
+}
+
 impl<'a, S: Simd> VWalk<'a, S> {
     /// The walks of the lanes of `st.runs` (each where its [`RunWalk`]
     /// was set up), on the rays `o + d·t` (`inv_d = 1/d`), sample grids
@@ -297,16 +327,7 @@ impl<'a, S: Simd> VWalk<'a, S> {
         size: usize,
         rays: Rays<S>,
     ) -> Self {
-        let mut a = [S::Af::default(); 2];
-        let mut lanes: [Option<LaneWalk>; LANES] = [None; LANES];
-        for (i, w) in st.runs.iter().enumerate().take(S::N) {
-            let Some(w) = w else { continue };
-            let (b, tm, t, _) = w.walker.state();
-            lanes[i] = Some((b, tm, t, w.seg.t_out));
-            a[0][i] = w.seg.walk.1;
-            a[1][i] = w.seg.t_end();
-        }
-        let w = VBlocks::new(&lanes, counts, size, &rays);
+        let (w, t_stop, t_end) = run_walks(st, counts, size, &rays);
         let t0 = rays.t0;
         let s0 = S::splat(p.steps[0]);
         let z = [S::splat(0.0); 4];
@@ -314,8 +335,8 @@ impl<'a, S: Simd> VWalk<'a, S> {
             p,
             q: (w.t - t0) / s0,
             w,
-            t_stop: S::load(a[0]),
-            t_end: S::load(a[1]),
+            t_stop,
+            t_end,
             cur: z,
             cur_ok: S::from_bits(0),
             held: z,
