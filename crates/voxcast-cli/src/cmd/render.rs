@@ -22,14 +22,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mut scene = a.scene()?;
     // A chunked store: the level the camera needs, read whole if it fits
     // the memory budget, else rendered out of core.
-    let mut level_read_whole = false;
+    let mut level_read_whole = None;
     match super::render_chunked::plan(&a, &scene)? {
         Some(super::render_chunked::Plan::OutOfCore(store, ooc)) => {
             return super::render_chunked::run(&a, &scene, &store, &ooc)
         }
-        Some(super::render_chunked::Plan::InCore(level)) => {
+        Some(super::render_chunked::Plan::InCore(level, store)) => {
             scene.input.options.level = Some(level);
-            level_read_whole = true;
+            level_read_whole = Some((level, store));
         }
         None => {}
     }
@@ -38,8 +38,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let (mut outputs, out) = plan_outputs(&a, &scene)?;
     let quiet = a.quiet;
     let mut prepared = prepare(&scene, &mut outputs, quiet)?;
-    if level_read_whole {
-        let said = super::render_chunked::match_out_of_core(&scene, &mut prepared)?;
+    if let Some((level, store)) = level_read_whole {
+        let said = super::render_chunked::match_out_of_core(&scene, &store, level, &mut prepared)?;
         if let (Some(said), false) = (said, quiet) {
             eprintln!("{said}");
         }

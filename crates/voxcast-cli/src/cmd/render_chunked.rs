@@ -24,8 +24,9 @@ const PROXY_BYTES: u64 = 64 << 20;
 
 /// What to do with a chunked input.
 pub enum Plan {
-    /// Read this level whole and render as usual.
-    InCore(usize),
+    /// Read this level whole and render as usual (the store, opened, for
+    /// [`match_out_of_core`]).
+    InCore(usize, Box<ZarrStore>),
     /// Render out of core.
     OutOfCore(Box<ZarrStore>, OutOfCoreParams),
 }
@@ -79,7 +80,7 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
                 human_bytes(budget)
             );
         }
-        return Ok(Some(Plan::InCore(level)));
+        return Ok(Some(Plan::InCore(level, Box::new(store))));
     }
     let ooc = OutOfCoreParams {
         budget,
@@ -103,13 +104,7 @@ pub fn prepare_from_proxy(
     let coarsest = store.finest_within(PROXY_BYTES).unwrap_or(levels.len() - 1);
     let proxy = store.read_level(coarsest)?;
     let mut prepared = scene.prepare_with(proxy)?;
-    // The window over the data range: level 0's, where the store keeps its
-    // chunks' ranges (the proxy's means are narrower).
-    if scene.transfer.window.is_none() && prepared.tf.window.is_none() {
-        if let Some(r) = store.value_range() {
-            prepared.window = r;
-        }
-    }
+    window_over_level0(scene, store, &mut prepared);
     prepared.volume = voxcast::Volume::new(
         [1, 1, 1],
         glam::Vec3::ONE,
@@ -130,11 +125,10 @@ pub fn prepare_from_proxy(
 /// Returns what changed, to tell the user (`None`: nothing).
 pub fn match_out_of_core(
     scene: &Scene,
+    store: &ZarrStore,
+    level: usize,
     prepared: &mut voxcast::scene::Prepared,
 ) -> Result<Option<String>> {
-    let path = Path::new(&scene.input.path);
-    let store = ZarrStore::open_with(path, &scene.input.options)?;
-    let level = scene.input.options.level.unwrap_or(0);
     let coarsest = store
         .finest_within(PROXY_BYTES)
         .unwrap_or(store.levels().len() - 1);
@@ -144,11 +138,7 @@ pub fn match_out_of_core(
         prepared.tf = from.tf;
         prepared.window = from.window;
     }
-    if scene.transfer.window.is_none() && prepared.tf.window.is_none() {
-        if let Some(r) = store.value_range() {
-            prepared.window = r;
-        }
-    }
+    window_over_level0(scene, store, prepared);
     let said = (prepared.tf != tf || prepared.window != window).then(|| {
         format!(
             "transfer function from level {coarsest} and window [{}, {}] from level 0's value range, as out of core",
@@ -156,6 +146,17 @@ pub fn match_out_of_core(
         )
     });
     Ok(said)
+}
+
+/// The window over the data range, where neither the scene nor the
+/// transfer function sets one: level 0's, where the store keeps its chunks'
+/// ranges (a coarser level's means are narrower).
+fn window_over_level0(scene: &Scene, store: &ZarrStore, prepared: &mut voxcast::scene::Prepared) {
+    if scene.transfer.window.is_none() && prepared.tf.window.is_none() {
+        if let Some(r) = store.value_range() {
+            prepared.window = r;
+        }
+    }
 }
 
 /// Renders `store` out of core and writes the outputs `a` asks for.

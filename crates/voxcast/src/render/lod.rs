@@ -95,6 +95,8 @@ pub(super) struct LodRay<'a> {
     pub empty: Vec<Vec<bool>>,
     pub amount: Vec<f32>,
     pub threshold: f32,
+    /// Per class, its step in unit lengths (`k · step`) and in world units.
+    pub ratios: [f32; 3],
     pub steps: [f32; 3],
     pub alphas: [Box<[f32; LUT_SIZE]>; 3],
 }
@@ -120,14 +122,15 @@ impl<'a> LodRay<'a> {
                 None => 0.0,
             })
             .collect();
-        let k = [params.high, params.low, params.sparse].map(|k| k as f32);
+        let ratios = [params.high, params.low, params.sparse].map(|k| k as f32 * step);
         LodRay {
             tree,
             empty: tree.empty_levels(leaf_empty),
             amount,
             threshold: params.threshold,
-            steps: k.map(|k| k * step * unit),
-            alphas: k.map(|k| lut.alphas(k * step)),
+            ratios,
+            steps: ratios.map(|r| r * unit),
+            alphas: ratios.map(|r| lut.alphas(r)),
         }
     }
 

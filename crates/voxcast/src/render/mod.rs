@@ -628,9 +628,11 @@ impl Job<'_> {
         m: &lod::LodRay<'_>,
     ) -> Option<Option<(Image, RenderStats)>> {
         packet::level(self.params.simd)?;
-        let p = self.params;
-        let k = [p.lod.high, p.lod.low, p.lod.sparse].map(|k| k as f32 * p.step);
-        let level_tables: Vec<_> = k.iter().map(|&r| self.lut.premultiplied(r)).collect();
+        let level_tables: Vec<_> = m
+            .ratios
+            .iter()
+            .map(|&r| self.lut.premultiplied(r))
+            .collect();
         let tables: Vec<[f32; 4]> = level_tables
             .iter()
             .flat_map(|q| q.iter().copied())

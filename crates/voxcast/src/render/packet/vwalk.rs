@@ -170,14 +170,19 @@ impl<S: Simd> VBlocks<S> {
         (ta, tb, b, [bx, by, bz])
     }
 
+    /// The lanes that move on axis `c` (direction not 0).
+    #[inline(always)]
+    unsafe fn moves(&self, c: usize) -> S::M {
+        let sg = self.sgn[c];
+        S::or(S::positive(sg), S::positive(S::splat_i(0) - sg))
+    }
+
     /// Where a lane crosses the far plane of its block `j` on axis `c`,
     /// as [`VBlocks::step`] computes it (∞ where it does not move on it).
     #[inline(always)]
     unsafe fn crossing(&self, c: usize, j: S::I) -> S::F {
         let x = ((S::to_f(j) + self.up[c]) * self.size - self.o[c]) * self.inv_d[c];
-        let sg = self.sgn[c];
-        let moving = S::or(S::positive(sg), S::positive(S::splat_i(0) - sg));
-        S::blend(moving, S::splat(f32::INFINITY), x)
+        S::blend(self.moves(c), S::splat(f32::INFINITY), x)
     }
 
     /// The lanes of `m`, just past block `b3` (the last [`VBlocks::step`]
@@ -212,7 +217,7 @@ impl<S: Simd> VBlocks<S> {
         let inv_size = S::splat(1.0) / self.size;
         for c in 0..3 {
             let sg = self.sgn[c];
-            let mv = S::and(go, S::or(S::positive(sg), S::positive(S::splat_i(0) - sg)));
+            let mv = S::and(go, self.moves(c));
             if S::bits(mv) == 0 {
                 continue;
             }
@@ -602,5 +607,5 @@ pub(super) unsafe fn exp<S: Simd>(x: S::F) -> S::F {
     for c in [1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0, 1.0] {
         p = p * r + S::splat(c);
     }
-    p * S::of_bits(S::sll(S::to_i(n) + S::splat_i(127), 23))
+    p * pow2::<S>(n)
 }
