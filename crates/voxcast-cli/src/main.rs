@@ -10,6 +10,7 @@ use clap::Parser;
 
 fn main() {
     let cli = Cli::parse();
+    quiet_on_closed_pipe(&cli.command);
     // One command per process: no output may replace a file it read.
     voxcast::files::record_inputs();
     // Started by mpirun: `render` is split over the processes.
@@ -53,4 +54,20 @@ fn main() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
     }
+}
+
+/// Commands that only print (`info`, `presets`, `compare`) end quietly when
+/// their reader goes away (`voxcast info scan.nrrd | head`), as other Unix
+/// tools do; Rust ignores SIGPIPE, and `println!` into the closed pipe would
+/// panic. Commands that write files keep it ignored: they finish (or fail)
+/// and clean up their temporary files.
+fn quiet_on_closed_pipe(c: &Command) {
+    #[cfg(unix)]
+    if matches!(c, Command::Info(_) | Command::Presets | Command::Compare(_)) {
+        // SAFETY: sets one signal's action back to the default, before
+        // any thread is started.
+        unsafe { libc::signal(libc::SIGPIPE, libc::SIG_DFL) };
+    }
+    #[cfg(not(unix))]
+    let _ = c;
 }

@@ -4,7 +4,7 @@
 //! a file cannot drive the terminal.
 
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 mod common;
@@ -335,4 +335,27 @@ fn an_interrupted_render_leaves_no_output_and_no_temporary_file() {
     };
     assert!(!status.success());
     assert!(names(dir.path()).is_empty(), "{:?}", names(dir.path()));
+}
+
+/// A command that only prints ends quietly when its reader goes away
+/// (`voxcast info scan.nhdr | head -1`): the closed pipe is not a panic.
+#[test]
+fn printing_into_a_closed_pipe_is_not_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    detached(dir.path());
+    let nhdr = dir.path().join("v.nhdr");
+    let info = ["info", nhdr.to_str().unwrap()];
+    for args in [&info[..], &["presets"]] {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_voxcast"))
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        // The reader is gone before the command prints.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+    }
 }
