@@ -171,7 +171,7 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
 }
 
 /// The SIMD packets, at every level this CPU has, against the scalar loop:
-/// every stored type, both fixed-step methods and `importance`, skipping on and off, early
+/// every stored type, both fixed-step methods, `importance` and `threshold`, skipping on and off, early
 /// termination on and off, flat and Phong, every optical model, several
 /// passes of jitter.
 /// On a CPU without AVX2 there is no level and the test checks nothing (the
@@ -188,7 +188,12 @@ fn packets_give_the_scalar_pixels() {
         let s = vol.stats();
         let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
         let mut terminated = 0;
-        for method in [Method::Uniform, Method::Jitter, Method::Importance] {
+        for method in [
+            Method::Uniform,
+            Method::Jitter,
+            Method::Importance,
+            Method::Threshold,
+        ] {
             for skip_empty in [true, false] {
                 for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
                     for optical in [
@@ -261,9 +266,10 @@ fn packets_give_the_scalar_pixels() {
 /// CPU has, the packets give the scalar pixels with the same samples
 /// (a jump passes only samples the scalar march skips too);
 /// `importance`'s vector walks, through the same long empty stretches,
-/// give the scalar walk's samples; and `lod`'s leaf walks, which jump the
+/// give the scalar walk's samples; `lod`'s leaf walks, which jump the
 /// same cubes where nothing is pending, give the scalar octree walk's
-/// pixels and samples.
+/// pixels and samples; and `threshold`'s lanes, which jump them and start
+/// again on the base grid, sample where the scalar march restarts.
 #[test]
 fn packets_jump_the_empty_space_and_keep_the_samples() {
     use voxcast::volume::VoxelData;
@@ -312,6 +318,8 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             (Method::Importance, true),
             (Method::Lod, false),
             (Method::Lod, true),
+            (Method::Threshold, false),
+            (Method::Threshold, true),
         ] {
             let mut p = RenderParams {
                 width: 64,

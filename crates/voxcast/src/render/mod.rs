@@ -465,7 +465,7 @@ impl Job<'_> {
         let k = p.adaptive_k_ref();
         match p.method {
             Method::Uniform | Method::Jitter if !p.grouped => {
-                match self.packets::<T, ()>(f, &t, None, None) {
+                match self.packets::<T, ()>(f, &t, None, None, None) {
                     Some(out) => out,
                     None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
                 }
@@ -481,6 +481,23 @@ impl Job<'_> {
                 self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(BlockMax(&self.block_k), k))
             }
             Method::Threshold => {
+                // In SIMD packets where the CPU and the render allow: the
+                // ranges' premultiplied tables, one after the other.
+                let tables: Vec<[f32; 4]> = p
+                    .threshold
+                    .steps
+                    .iter()
+                    .flat_map(|&r| *self.lut.premultiplied(r))
+                    .collect();
+                let thr = packet::Thr {
+                    params: p.threshold,
+                    steps: p.threshold.steps.map(|s| s * self.unit),
+                    tables: &tables,
+                    sigma: self.lut.sigmas(),
+                };
+                if let Some(out) = self.packets::<T, ()>(f, &t, None, None, Some(thr)) {
+                    return out;
+                }
                 let alphas: Vec<_> = p
                     .threshold
                     .steps
@@ -520,7 +537,7 @@ impl Job<'_> {
                     steps: &steps,
                     tables: &tables,
                 };
-                if let Some(out) = self.packets::<T, ()>(f, &t, Some(imp), None) {
+                if let Some(out) = self.packets::<T, ()>(f, &t, Some(imp), None, None) {
                     return out;
                 }
                 let m = stochastic::Importance {
@@ -612,7 +629,7 @@ impl Job<'_> {
                 vector: packet::vector_params(m, &k, f.skip_empty, grouped),
                 lod: None,
             };
-            if let Some(out) = self.packets(f, t, None, Some(&runs)) {
+            if let Some(out) = self.packets(f, t, None, Some(&runs), None) {
                 return out;
             }
         }
@@ -677,7 +694,7 @@ impl Job<'_> {
                 skip_empty: f.skip_empty,
             }),
         };
-        self.packets(f, &t, None, Some(&runs))
+        self.packets(f, &t, None, Some(&runs), None)
     }
 
     /// A render through the SIMD ray packets (packet/) — a fixed step,
@@ -689,6 +706,7 @@ impl Job<'_> {
         t: &Tables,
         imp: Option<packet::Imp<'_>>,
         runs: Option<&R>,
+        thr: Option<packet::Thr<'_>>,
     ) -> Option<Option<(Image, RenderStats)>> {
         let p = self.params;
         // The shading `shaded` picks.
@@ -724,6 +742,7 @@ impl Job<'_> {
             level,
             imp,
             runs,
+            thr,
             surface: self.surface,
         };
         let (passes, bg) = (self.passes(), self.background());

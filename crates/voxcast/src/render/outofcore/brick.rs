@@ -402,6 +402,7 @@ fn march_rows<T: Stored>(
         level,
         imp: None,
         runs: None,
+        thr: None,
         surface: None,
     };
     rows.map(|row| {

@@ -50,6 +50,7 @@ mod importance;
 mod lod;
 mod runs;
 mod shade;
+mod threshold;
 
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
@@ -60,6 +61,7 @@ pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
 pub(in crate::render) use lod::VLodParams;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
+pub(in crate::render) use threshold::Thr;
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
 /// register, AVX2 as two packets of eight.
@@ -184,6 +186,8 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub imp: Option<Imp<'a>>,
     /// A step-per-block march, when the packets march one.
     pub runs: Option<&'a R>,
+    /// `threshold`'s ranges, steps and tables, when the packets march it.
+    pub thr: Option<Thr<'a>>,
     /// Opaque geometry the rays stop at (S0 Fig. 9–13): a lane's ray ends
     /// at its first hit, and the surface's lit colour is composited
     /// behind what it gathered, as [`super::trace::trace`] does.
@@ -208,6 +212,8 @@ struct State<'s> {
     count: &'s mut [[u32; 3]],
     alive: &'s mut [bool],
     walk: &'s mut Counters,
+    /// `threshold`'s lanes: the end of the walk, and the exit.
+    ends: &'s [[f32; 2]],
 }
 
 impl State<'_> {
@@ -219,8 +225,9 @@ impl State<'_> {
             runs: &mut self.runs[r.clone()],
             acc: &mut self.acc[r.clone()],
             count: &mut self.count[r.clone()],
-            alive: &mut self.alive[r],
+            alive: &mut self.alive[r.clone()],
             walk: self.walk,
+            ends: &self.ends[r],
         }
     }
 }
@@ -382,6 +389,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // Each lane's first opaque surface, lit (its colour is composited
         // behind the lane's samples).
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
+        let mut ends = [[0.0f32; 2]; LANES];
         for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
             let hit = surface::first_hit(
                 self.f,
@@ -395,6 +403,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             lanes[i] = if R::ON {
                 self.run_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                     runs[i] = Some(w);
+                    l
+                })
+            } else if self.thr.is_some() {
+                self.thr_lane(r, limit, pixel, pass, stats).map(|(l, e)| {
+                    ends[i] = e;
                     l
                 })
             } else if self.imp.is_some() {
@@ -424,6 +437,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             count: &mut count,
             alive: &mut alive,
             walk: &mut walk,
+            ends: &ends,
         };
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
@@ -470,7 +484,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         count: &mut [[u32; 3]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        debug_assert!(self.imp.is_none() && !R::ON);
+        debug_assert!(self.imp.is_none() && self.thr.is_none() && !R::ON);
         debug_assert!(self
             .empty
             .is_none_or(|e| { e.len() == self.f.block_counts.iter().product::<usize>() }));
@@ -484,6 +498,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             count,
             alive,
             walk: &mut walk,
+            ends: &[[0.0; 2]; LANES],
         };
         // SAFETY: as in `render`: the caller took `level` from [`level`],
         // checked [`fits`] for the grid and [`shades`] for the shading;
@@ -561,6 +576,23 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                         _ => unreachable!("packets: grouping without runs"),
                     }
                 }
+            };
+        }
+        if !R::ON && self.thr.is_some() {
+            // `threshold`: skipping and shading (its own loop).
+            macro_rules! thr {
+                ($f:ident) => {
+                    match (choice.0, choice.1) {
+                        (false, false) => threshold::$f::<T, R, false, false>(self, lanes, st),
+                        (true, false) => threshold::$f::<T, R, true, false>(self, lanes, st),
+                        (false, true) => threshold::$f::<T, R, false, true>(self, lanes, st),
+                        (true, true) => threshold::$f::<T, R, true, true>(self, lanes, st),
+                    }
+                };
+            }
+            return match self.level {
+                Level::Avx2 => thr!(thr_avx2),
+                Level::Avx512 => thr!(thr_avx512),
             };
         }
         match self.level {

@@ -74,6 +74,9 @@ pub(super) trait Simd: Copy {
     /// 32-bit loads at byte offsets `idx · SCALE` from `p`.
     unsafe fn gather<const SCALE: i32>(p: *const i32, idx: Self::I) -> Self::I;
     unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: Self::I) -> Self::F;
+    /// 64-bit loads at byte offsets `idx · SCALE` from `p`: their low and
+    /// their high 32 bits.
+    unsafe fn gather_pair<const SCALE: i32>(p: *const i64, idx: Self::I) -> (Self::I, Self::I);
     /// The four channels of rows `i4 / 4` of a table of `[f32; 4]` rows
     /// (`i4`: float offsets), one 128-bit load per lane and a transpose.
     unsafe fn rows(table: *const f32, i4: Self::I) -> [Self::F; 4];

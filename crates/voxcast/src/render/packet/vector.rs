@@ -78,7 +78,14 @@ unsafe fn trilinear<S: Simd>(c: [S::F; 8], [fx, fy, fz]: [S::F; 3]) -> S::F {
 /// to the axis). By the reciprocal, not a division: off by an ulp or so,
 /// which the caller's margin covers.
 #[inline(always)]
-unsafe fn exit<S: Simd>(o: S::F, d: S::F, inv_d: S::F, b: S::I, r: S::F, bs: S::F) -> S::F {
+pub(super) unsafe fn exit<S: Simd>(
+    o: S::F,
+    d: S::F,
+    inv_d: S::F,
+    b: S::I,
+    r: S::F,
+    bs: S::F,
+) -> S::F {
     let zero = S::splat(0.0);
     let up = S::gt(d, zero);
     let face = (S::to_f(b) + S::blend(up, S::splat(1.0) - r, r)) * bs;
@@ -91,7 +98,7 @@ unsafe fn exit<S: Simd>(o: S::F, d: S::F, inv_d: S::F, b: S::I, r: S::F, bs: S::
 /// face belongs to the block the ray is leaving, as in `BlockWalker`),
 /// clamped to `0..=top`.
 #[inline(always)]
-unsafe fn block<S: Simd>(c: S::F, d: S::F, inv_bs: S::F, top: S::I) -> S::I {
+pub(super) unsafe fn block<S: Simd>(c: S::F, d: S::F, inv_bs: S::F, top: S::I) -> S::I {
     let q = c * inv_bs;
     let down = S::lt(d, S::splat(0.0));
     let b = S::blend(down, S::floor(q), S::ceil(q) - S::splat(1.0));
@@ -99,7 +106,7 @@ unsafe fn block<S: Simd>(c: S::F, d: S::F, inv_bs: S::F, top: S::I) -> S::I {
 }
 
 /// The grid as the lanes read it (see `Grid::sample`).
-struct Vol<S: Simd> {
+pub(super) struct Vol<S: Simd> {
     data: *const u8,
     /// u8 grids: the z-paired copy (`super::z_pairs`).
     zp: *const u8,
@@ -121,10 +128,46 @@ struct Vol<S: Simd> {
 }
 
 impl<S: Simd> Vol<S> {
+    /// The grid of the packets' frame (and, for u8, its z-paired copy).
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub(super) unsafe fn of<T: Voxel, R: Runs<T>>(pk: &Packets<'_, T, R>) -> Self {
+        let f = pk.f;
+        let (data, step, last, max) = f.grid.layout();
+        let (scale, offset) = f.grid.scale_offset();
+        let dims = f.grid.dims();
+        Vol {
+            data: data.as_ptr() as *const u8,
+            zp: pk.z_pairs.as_ptr() as *const u8,
+            len_bytes: std::mem::size_of_val(data) as i32,
+            max: [S::splat(max.x), S::splat(max.y), S::splat(max.z)],
+            last: [
+                S::splat_i(last[0] as i32),
+                S::splat_i(last[1] as i32),
+                S::splat_i(last[2] as i32),
+            ],
+            sy: S::splat_i(step[1] as i32),
+            sz: S::splat_i(step[2] as i32),
+            dimx: S::splat_i(dims[0] as i32),
+            dimy: S::splat_i(dims[1] as i32),
+            inner: S::splat_i((1 + dims[0] + dims[0] * dims[1]) as i32),
+            lastf: [
+                S::splat(last[0] as f32),
+                S::splat(last[1] as f32),
+                S::splat(last[2] as f32),
+            ],
+            scale: S::splat(scale),
+            half_scale: S::splat(0.5 * scale),
+            offset: S::splat(offset),
+        }
+    }
+
     /// Positions clamped into the grid as `Grid::sample` clamps them
     /// (max first: a NaN becomes 0).
     #[inline(always)]
-    unsafe fn clamp(&self, p: [S::F; 3]) -> [S::F; 3] {
+    pub(super) unsafe fn clamp(&self, p: [S::F; 3]) -> [S::F; 3] {
         let z = S::splat(0.0);
         [
             S::min(S::max(p[0], z), self.max[0]),
@@ -156,28 +199,32 @@ impl<S: Simd> Vol<S> {
     /// is element `base`: `c[x + 2y + 4z]`.
     #[inline(always)]
     unsafe fn corners<T: Voxel>(&self, base: S::I) -> [S::F; 8] {
-        let (c000, c100, c010, c110, c001, c101, c011, c111);
         if T::KIND == VoxelKind::U8 {
             // Two gathers: rows y and y + 1 of the z-paired copy.
-            let m = S::splat_i(0xff);
-            let g0 = S::gather::<2>(self.zp as *const i32, base);
-            let g1 = S::gather::<2>(self.zp as *const i32, base + self.sy);
-            c000 = S::to_f(S::and_i(g0, m));
-            c001 = S::to_f(S::and_i(S::srl(g0, 8), m));
-            c100 = S::to_f(S::and_i(S::srl(g0, 16), m));
-            c101 = S::to_f(S::srl(g0, 24));
-            c010 = S::to_f(S::and_i(g1, m));
-            c011 = S::to_f(S::and_i(S::srl(g1, 8), m));
-            c110 = S::to_f(S::and_i(S::srl(g1, 16), m));
-            c111 = S::to_f(S::srl(g1, 24));
+            cell_of::<S>(self.quad(base), self.quad(base + self.sy))
         } else {
             let (d, n) = (self.data, self.len_bytes);
-            (c000, c100) = pair::<S, T>(d, n, base);
-            (c010, c110) = pair::<S, T>(d, n, base + self.sy);
-            (c001, c101) = pair::<S, T>(d, n, base + self.sz);
-            (c011, c111) = pair::<S, T>(d, n, base + self.sy + self.sz);
+            let (c000, c100) = pair::<S, T>(d, n, base);
+            let (c010, c110) = pair::<S, T>(d, n, base + self.sy);
+            let (c001, c101) = pair::<S, T>(d, n, base + self.sz);
+            let (c011, c111) = pair::<S, T>(d, n, base + self.sy + self.sz);
+            [c000, c100, c010, c110, c001, c101, c011, c111]
         }
-        [c000, c100, c010, c110, c001, c101, c011, c111]
+    }
+
+    /// u8 grids: the z-paired copy's 64 bits at element `i − 1`, as two
+    /// [`Vol::quad`]s: columns x − 1, x and x + 1, x + 2.
+    #[inline(always)]
+    unsafe fn row(&self, i: S::I) -> ([S::F; 4], [S::F; 4]) {
+        let (lo, hi) = S::gather_pair::<2>(self.zp as *const i64, i - S::splat_i(1));
+        (bytes::<S>(lo), bytes::<S>(hi))
+    }
+
+    /// u8 grids: the z-paired copy's 32 bits at element `i`, i.e. voxels
+    /// `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)` of its row.
+    #[inline(always)]
+    unsafe fn quad(&self, i: S::I) -> [S::F; 4] {
+        bytes::<S>(S::gather::<2>(self.zp as *const i32, i))
     }
 
     /// The difference of the trilinear values of the cells at elements
@@ -187,14 +234,13 @@ impl<S: Simd> Vol<S> {
     /// integer voxels).
     #[inline(always)]
     unsafe fn cell_diff<T: Voxel>(&self, a: S::I, b: S::I, f: [S::F; 3]) -> S::F {
-        let (ca, cb) = (self.corners::<T>(a), self.corners::<T>(b));
-        trilinear::<S>(std::array::from_fn(|i| ca[i] - cb[i]), f)
+        diff::<S>(self.corners::<T>(a), self.corners::<T>(b), f)
     }
 
     /// The normalised trilinear value at `p` (voxel coordinates),
     /// lane by lane `Grid::sample`.
     #[inline(always)]
-    unsafe fn sample<T: Voxel>(&self, p: [S::F; 3]) -> S::F {
+    pub(super) unsafe fn sample<T: Voxel>(&self, p: [S::F; 3]) -> S::F {
         let (base, f) = self.locate(p);
         self.cell::<T>(base, f) * self.scale + self.offset
     }
@@ -237,12 +283,73 @@ impl<S: Simd> Vol<S> {
         let (base, f) = self.locate(p);
         let base = S::blend_i(m, self.inner, base);
         let (dx, dy, dz) = (S::splat_i(1), self.sy, self.sz);
+        if T::KIND == VoxelKind::U8 {
+            return self.gradient_u8(base, f);
+        }
         let gx = self.cell_diff::<T>(base + dx, base - dx, f);
         let gy = self.cell_diff::<T>(base + dy, base - dy, f);
         let gz = self.cell_diff::<T>(base + dz, base - dz, f);
         let hs = self.half_scale;
         [gx * hs, gy * hs, gz * hs]
     }
+
+    /// [`Vol::gradient_cells`]'s differences for u8 grids, the same
+    /// values in fewer loads: rows y and y + 1 of the z-paired copy at
+    /// x − 1 … x + 2 are one 64-bit load each and hold both cells x ± 1
+    /// and the cell's own middle, which the y differences reuse (eight
+    /// loads a lane where the six cells take twelve).
+    #[inline(always)]
+    unsafe fn gradient_u8(&self, base: S::I, f: [S::F; 3]) -> [S::F; 3] {
+        let (sy, sz) = (self.sy, self.sz);
+        // Columns x − 1, x (`l`) and x + 1, x + 2 (`h`) of rows y, y + 1.
+        let (l0, h0) = self.row(base);
+        let (l1, h1) = self.row(base + sy);
+        let (m0, m1) = (mid::<S>(l0, h0), mid::<S>(l1, h1));
+        let gx = diff::<S>(cell_of::<S>(h0, h1), cell_of::<S>(l0, l1), f);
+        let gy = diff::<S>(
+            cell_of::<S>(m1, self.quad(base + sy + sy)),
+            cell_of::<S>(self.quad(base - sy), m0),
+            f,
+        );
+        let gz = diff::<S>(
+            cell_of::<S>(self.quad(base + sz), self.quad(base + sz + sy)),
+            cell_of::<S>(self.quad(base - sz), self.quad(base - sz + sy)),
+            f,
+        );
+        let hs = self.half_scale;
+        [gx * hs, gy * hs, gz * hs]
+    }
+}
+
+/// The four bytes of `g`, low first, as floats.
+#[inline(always)]
+unsafe fn bytes<S: Simd>(g: S::I) -> [S::F; 4] {
+    let m = S::splat_i(0xff);
+    [
+        S::to_f(S::and_i(g, m)),
+        S::to_f(S::and_i(S::srl(g, 8), m)),
+        S::to_f(S::and_i(S::srl(g, 16), m)),
+        S::to_f(S::srl(g, 24)),
+    ]
+}
+
+/// The middle two columns of [`Vol::row`]'s four.
+#[inline(always)]
+fn mid<S: Simd>(l: [S::F; 4], h: [S::F; 4]) -> [S::F; 4] {
+    [l[2], l[3], h[0], h[1]]
+}
+
+/// The trilinear value at `f` of the corners' differences `a − b`.
+#[inline(always)]
+unsafe fn diff<S: Simd>(a: [S::F; 8], b: [S::F; 8], f: [S::F; 3]) -> S::F {
+    trilinear::<S>(std::array::from_fn(|i| a[i] - b[i]), f)
+}
+
+/// A cell's corners `c[x + 2y + 4z]` from its rows y and y + 1, each
+/// `[(x, z), (x, z + 1), (x + 1, z), (x + 1, z + 1)]`.
+#[inline(always)]
+fn cell_of<S: Simd>(r0: [S::F; 4], r1: [S::F; 4]) -> [S::F; 8] {
+    [r0[0], r0[2], r1[0], r1[2], r0[1], r0[3], r1[1], r1[3]]
 }
 
 /// Shades a vector of the samples waiting in `dq` (`view`: the lanes'
@@ -251,7 +358,7 @@ impl<S: Simd> Vol<S> {
 /// # Safety
 /// The width's instructions.
 #[inline(always)]
-unsafe fn shade_deferred<S: Simd, T: Voxel>(
+pub(super) unsafe fn shade_deferred<S: Simd, T: Voxel>(
     dq: &mut Deferred,
     vol: &Vol<S>,
     light: &Light<S>,
@@ -364,33 +471,7 @@ unsafe fn march<
 ) {
     debug_assert!(lanes.len() == S::N && st.acc.len() == S::N);
     let f = pk.f;
-    let (data, step, last, max) = f.grid.layout();
-    let (scale, offset) = f.grid.scale_offset();
-    let dims = f.grid.dims();
-    let vol = Vol::<S> {
-        data: data.as_ptr() as *const u8,
-        zp: pk.z_pairs.as_ptr() as *const u8,
-        len_bytes: std::mem::size_of_val(data) as i32,
-        max: [S::splat(max.x), S::splat(max.y), S::splat(max.z)],
-        last: [
-            S::splat_i(last[0] as i32),
-            S::splat_i(last[1] as i32),
-            S::splat_i(last[2] as i32),
-        ],
-        sy: S::splat_i(step[1] as i32),
-        sz: S::splat_i(step[2] as i32),
-        dimx: S::splat_i(dims[0] as i32),
-        dimy: S::splat_i(dims[1] as i32),
-        inner: S::splat_i((1 + dims[0] + dims[0] * dims[1]) as i32),
-        lastf: [
-            S::splat(last[0] as f32),
-            S::splat(last[1] as f32),
-            S::splat(last[2] as f32),
-        ],
-        scale: S::splat(scale),
-        half_scale: S::splat(0.5 * scale),
-        offset: S::splat(offset),
-    };
+    let vol = Vol::<S>::of(pk);
     let mut a = [S::Af::default(); 12];
     let (mut k, mut kend) = (S::Af::default(), S::Af::default());
     let mut live_bits = 0u32;

@@ -205,6 +205,21 @@ impl Simd for W16 {
         F16(_mm512_i32gather_ps::<SCALE>(idx.0, p))
     }
     #[inline(always)]
+    unsafe fn gather_pair<const SCALE: i32>(p: *const i64, idx: I16) -> (I16, I16) {
+        let (lo, hi) = (
+            _mm512_castsi512_si256(idx.0),
+            _mm512_extracti64x4_epi64::<1>(idx.0),
+        );
+        let a = _mm512_i32gather_epi64::<SCALE>(lo, p);
+        let b = _mm512_i32gather_epi64::<SCALE>(hi, p);
+        let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
+        let odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
+        (
+            I16(_mm512_castps_si512(pick(a, even, b))),
+            I16(_mm512_castps_si512(pick(a, odd, b))),
+        )
+    }
+    #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I16) -> [F16; 4] {
         // A row is two 64-bit halves, (r, g) and (b, a): four gathers of
         // eight 64-bit elements (32 loads, where four 16-wide gathers of

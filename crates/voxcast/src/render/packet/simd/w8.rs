@@ -248,6 +248,19 @@ impl Simd for W8 {
         F8(_mm256_i32gather_ps::<SCALE>(p, idx.0))
     }
     #[inline(always)]
+    unsafe fn gather_pair<const SCALE: i32>(p: *const i64, idx: I8) -> (I8, I8) {
+        let (lo, hi) = (
+            _mm256_castsi256_si128(idx.0),
+            _mm256_extracti128_si256::<1>(idx.0),
+        );
+        let a = _mm256_castsi256_ps(_mm256_i32gather_epi64::<SCALE>(p, lo));
+        let b = _mm256_castsi256_ps(_mm256_i32gather_epi64::<SCALE>(p, hi));
+        (
+            I8(_mm256_castps_si256(evens(a, b))),
+            I8(_mm256_castps_si256(odds(a, b))),
+        )
+    }
+    #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I8) -> [F8; 4] {
         // A row is two 64-bit halves, (r, g) and (b, a): four gathers of
         // four 64-bit elements (16 loads), then per channel a shuffle of

@@ -1,0 +1,323 @@
+//! `threshold` in the packets: each lane steps by the step of the range
+//! its last value fell into (`march::Threshold`, ray by ray), so the
+//! lanes' positions drift apart and each keeps its own `t`. Empty blocks
+//! are skipped by the fixed-step loop's skip distances, and the lane then
+//! starts again on the base grid `t₀ + n·step` past them, where the
+//! scalar march restarts at the next block that is not empty.
+
+#[cfg(target_arch = "x86_64")]
+pub(super) use vector::{thr_avx2, thr_avx512};
+
+use super::{Lane, Packets, Runs, Setup};
+use crate::render::march::ThresholdParams;
+use crate::render::stats::RenderStats;
+use crate::transfer::LUT_SIZE;
+use crate::volume::Voxel;
+use glam::Vec3;
+
+/// `threshold` in packets: its ranges, and per range the step and the
+/// premultiplied table.
+pub(in crate::render) struct Thr<'a> {
+    pub params: ThresholdParams,
+    /// Per range, the step (world units).
+    pub steps: [f32; 3],
+    /// The ranges' premultiplied tables, one after the other (`LUT_SIZE`
+    /// rows each).
+    pub tables: &'a [[f32; 4]],
+    /// Extinction per unit length of every entry, for the last sample's
+    /// stretch.
+    pub sigma: &'a [f32; LUT_SIZE],
+}
+
+impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
+    /// Sets up a `threshold` ray as [`crate::render::trace::trace`] does:
+    /// the lane (its first sample `k0` on the base grid, at the first
+    /// block that is not empty) and where it stops: the end of its walk,
+    /// and its exit (a sample whose step reaches it is the last).
+    pub(super) fn thr_lane(
+        &self,
+        ray: (Vec3, Vec3),
+        limit: f32,
+        pixel: (u32, u32),
+        pass: u32,
+        stats: &mut RenderStats,
+    ) -> Option<(Lane, [f32; 2])> {
+        let Setup {
+            o,
+            d,
+            t_in,
+            t_out,
+            walk,
+        } = self.setup(ray, limit, stats)?;
+        let t0 = self.grid_start(t_in, pixel, pass);
+        let k0 = ((walk.0 - t0) / self.st).ceil().max(0.0) as u32;
+        // Past the walk's end every block is empty.
+        if t0 + k0 as f32 * self.st >= walk.1 {
+            return None;
+        }
+        let lane = Lane {
+            k0,
+            ..Lane::walking(o, d, -ray.1, t0, t_out + (t0 - t_in))
+        };
+        Some((lane, [walk.1, t_out]))
+    }
+}
+
+/// The vector loop (x86-64 only, as the packets).
+#[cfg(target_arch = "x86_64")]
+mod vector {
+    use super::super::shade::{Deferred, Light};
+    use super::super::simd::{Simd, W16, W8};
+    use super::super::vector::{block, exit, shade_deferred, Vol};
+    use super::super::vwalk::exp;
+    use super::super::{Lane, Packets, Runs, State, LANES};
+    use crate::transfer::LUT_SIZE;
+    use crate::volume::Voxel;
+    use glam::Vec4;
+
+    /// The `threshold` lanes' loop at AVX2: two packets of eight.
+    ///
+    /// # Safety
+    /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a u8
+    /// grid, `pk.z_pairs` is its z-paired copy; `pk.thr` is set.
+    #[target_feature(enable = "avx2,fma")]
+    pub(in crate::render::packet) unsafe fn thr_avx2<
+        T: Voxel,
+        R: Runs<T>,
+        const SKIP: bool,
+        const SHADE: bool,
+    >(
+        pk: &Packets<'_, T, R>,
+        lanes: &[Option<Lane>; LANES],
+        st: &mut State<'_>,
+    ) {
+        for h in [0..LANES / 2, LANES / 2..LANES] {
+            if lanes[h.clone()].iter().any(Option::is_some) {
+                march::<W8, T, R, SKIP, SHADE>(pk, &lanes[h.clone()], &mut st.part(h));
+            }
+        }
+    }
+
+    /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
+    ///
+    /// # Safety
+    /// As [`thr_avx2`], and AVX-512 F present.
+    #[target_feature(enable = "avx2,fma,avx512f")]
+    pub(in crate::render::packet) unsafe fn thr_avx512<
+        T: Voxel,
+        R: Runs<T>,
+        const SKIP: bool,
+        const SHADE: bool,
+    >(
+        pk: &Packets<'_, T, R>,
+        lanes: &[Option<Lane>; LANES],
+        st: &mut State<'_>,
+    ) {
+        march::<W16, T, R, SKIP, SHADE>(pk, lanes, st)
+    }
+
+    /// The loop of both widths: lane by lane `march::Threshold::march` with
+    /// front-to-back compositing, from the colour and opacity in `st.acc`.
+    ///
+    /// # Safety
+    /// As [`thr_avx2`], with the width's instructions.
+    #[inline(always)]
+    unsafe fn march<S: Simd, T: Voxel, R: Runs<T>, const SKIP: bool, const SHADE: bool>(
+        pk: &Packets<'_, T, R>,
+        lanes: &[Option<Lane>],
+        st: &mut State<'_>,
+    ) {
+        debug_assert!(lanes.len() == S::N && st.acc.len() == S::N);
+        let f = pk.f;
+        let thr = pk.thr.as_ref().unwrap_unchecked();
+        let vol = Vol::<S>::of(pk);
+        // Per lane: origin, direction, grid start, view, first sample, end of
+        // the walk, exit, the last stretch's end, colour and opacity.
+        let mut a = [S::Af::default(); 18];
+        let mut live_bits = 0u32;
+        for (i, l) in lanes.iter().enumerate() {
+            let Some(l) = l else { continue };
+            let c = st.acc[i];
+            let [stop, out] = st.ends[i];
+            let v = [
+                l.o.x,
+                l.o.y,
+                l.o.z,
+                l.d.x,
+                l.d.y,
+                l.d.z,
+                l.t0,
+                l.view.x,
+                l.view.y,
+                l.view.z,
+                l.t0 + l.k0 as f32 * pk.st,
+                stop,
+                out,
+                l.t_end,
+                c.x,
+                c.y,
+                c.z,
+                c.w,
+            ];
+            for (k, x) in v.into_iter().enumerate() {
+                a[k][i] = x;
+            }
+            live_bits |= 1 << i;
+        }
+        let o = [S::load(a[0]), S::load(a[1]), S::load(a[2])];
+        let d = [S::load(a[3]), S::load(a[4]), S::load(a[5])];
+        let t0 = S::load(a[6]);
+        let view = [S::load(a[7]), S::load(a[8]), S::load(a[9])];
+        let mut t = S::load(a[10]);
+        let (t_stop, t_out, t_end) = (S::load(a[11]), S::load(a[12]), S::load(a[13]));
+        let mut col = [
+            S::load(a[14]),
+            S::load(a[15]),
+            S::load(a[16]),
+            S::load(a[17]),
+        ];
+        let (zero, one, half) = (S::splat(0.0), S::splat(1.0), S::splat(0.5));
+        let top = S::splat((LUT_SIZE - 1) as f32);
+        let q = thr.tables.as_ptr() as *const f32;
+        let sigma = thr.sigma.as_ptr();
+        let rows = S::splat_i(4 * LUT_SIZE as i32);
+        let (b0, b1) = (
+            S::splat(thr.params.bounds[0]),
+            S::splat(thr.params.bounds[1]),
+        );
+        let steps = [
+            S::splat(thr.steps[0]),
+            S::splat(thr.steps[1]),
+            S::splat(thr.steps[2]),
+        ];
+        let inv_unit = S::splat(1.0 / f.unit);
+        let (we, wa) = (
+            S::splat(pk.weights.emission),
+            S::splat(pk.weights.absorption),
+        );
+        let stop = S::splat(pk.stop);
+        let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
+        let mut dq = Deferred::new();
+        // Skipping: the blocks' skip distances, and the base grid.
+        let (stv, inv_st) = (S::splat(pk.st), S::splat(1.0 / pk.st));
+        let inv_d = [one / d[0], one / d[1], one / d[2]];
+        let inv_bs = S::splat(1.0 / f.block_size as f32);
+        let bsv = S::splat(f.block_size as f32);
+        let [cx, cy, cz] = [0, 1, 2].map(|a| f.block_counts[a] as i32);
+        let bmax = [S::splat_i(cx - 1), S::splat_i(cy - 1), S::splat_i(cz - 1)];
+        let (ncx, ncy) = (S::splat_i(cx), S::splat_i(cy));
+        let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
+        let mut live = S::from_bits(live_bits);
+        let (mut cnt, mut cnt_shaded) = (S::splat_i(0), S::splat_i(0));
+        loop {
+            let act = S::and(live, S::lt(t, t_stop));
+            if S::bits(act) == 0 {
+                break;
+            }
+            let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+            let mut samp = act;
+            if SKIP {
+                let c = vol.clamp(p);
+                let b3 = [
+                    block::<S>(c[0], d[0], inv_bs, bmax[0]),
+                    block::<S>(c[1], d[1], inv_bs, bmax[1]),
+                    block::<S>(c[2], d[2], inv_bs, bmax[2]),
+                ];
+                let b = b3[0] + S::mullo(ncx, b3[1] + S::mullo(ncy, b3[2]));
+                let e = S::gather::<4>(empty, b);
+                let skip = S::and(act, S::positive(e));
+                if S::bits(skip) != 0 {
+                    // Past the empty cube around the block, on the base grid
+                    // (a thousandth of a step early, as the fixed step skips:
+                    // a sample still inside is tested again), and at least
+                    // the base grid's next sample.
+                    let r = S::to_f(e);
+                    let te = S::min(
+                        S::min(
+                            exit::<S>(o[0], d[0], inv_d[0], b3[0], r, bsv),
+                            exit::<S>(o[1], d[1], inv_d[1], b3[1], r, bsv),
+                        ),
+                        exit::<S>(o[2], d[2], inv_d[2], b3[2], r, bsv),
+                    );
+                    let kn = S::ceil((te - t0) * inv_st - S::splat(1e-3));
+                    // (A lane a thousandth of a step or less before a
+                    // grid point counts as on it.)
+                    let k1 = S::floor((t - t0) * inv_st + S::splat(1e-3)) + one;
+                    t = S::blend(skip, t, t0 + S::max(kn, k1) * stv);
+                    samp = S::but(act, skip);
+                    if S::bits(samp) == 0 {
+                        continue;
+                    }
+                }
+            }
+            cnt = S::count(cnt, samp);
+            let v = vol.sample::<T>(p);
+            // `ThresholdParams::range`: 0 below the first bound, 1 below the
+            // second, else 2 (NaN too).
+            let (lt0, lt1) = (S::lt(v, b0), S::lt(v, b1));
+            let r = S::blend_i(
+                lt0,
+                S::blend_i(lt1, S::splat_i(2), S::splat_i(1)),
+                S::splat_i(0),
+            );
+            let step = S::blend(lt0, S::blend(lt1, steps[2], steps[1]), steps[0]);
+            // `Lut::index`: below 0 (or NaN) nothing.
+            let mut valid = S::and(samp, S::ge(v, zero));
+            let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
+            let [mut qr, mut qg, mut qb, mut al] = S::rows(q, S::sll(idx, 2) + S::mullo(r, rows));
+            // A sample whose step reaches the exit stands for the stretch to
+            // the last one's end instead (`Segment::t_end`).
+            let last = S::and(valid, S::ge(t + step, t_out));
+            if S::bits(last) != 0 {
+                let sg = S::gather_f::<4>(sigma, idx);
+                let ax = one - exp::<S>(zero - sg * (t_end - t) * inv_unit);
+                let k = S::blend(S::gt(al, zero), zero, ax / al);
+                let k = S::blend(last, one, k);
+                (qr, qg, qb) = (qr * k, qg * k, qb * k);
+                al = S::blend(last, al, ax);
+            }
+            let mut e = [zero; 3];
+            valid = S::and(valid, S::gt(al, zero));
+            if SHADE {
+                if S::bits(valid) != 0 {
+                    let w = we * (one - col[3]);
+                    if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
+                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                    }
+                    cnt_shaded = S::count(cnt_shaded, valid);
+                }
+            } else {
+                e = [S::keep(valid, qr), S::keep(valid, qg), S::keep(valid, qb)];
+            }
+            let al = S::keep(valid, al);
+            let tr = one - col[3];
+            col[0] = col[0] + e[0] * we * tr;
+            col[1] = col[1] + e[1] * we * tr;
+            col[2] = col[2] + e[2] * we * tr;
+            col[3] = col[3] + al * wa * tr;
+            live = S::but(live, S::and(valid, S::ge(col[3], stop)));
+            t = S::blend(samp, t, t + step);
+        }
+        if SHADE {
+            while dq.waiting() > 0 {
+                shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+            }
+            for (c, acc) in dq.acc.iter().enumerate() {
+                col[c] = col[c] + S::load_at(acc.as_ptr());
+            }
+        }
+        let col = [
+            S::store(col[0]),
+            S::store(col[1]),
+            S::store(col[2]),
+            S::store(col[3]),
+        ];
+        let (c, cs) = (S::store_i(cnt), S::store_i(cnt_shaded));
+        let l = S::bits(live);
+        for i in 0..S::N {
+            st.acc[i] = Vec4::new(col[0][i], col[1][i], col[2][i], col[3][i]);
+            st.count[i] = [c[i] as u32, cs[i] as u32, c[i] as u32];
+            st.alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
+        }
+    }
+}
