@@ -68,8 +68,9 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 mod vector {
     use super::super::shade::{Deferred, Light};
     use super::super::simd::{Simd, W16, W8};
-    use super::super::vector::{block, exit, shade_deferred, Vol};
+    use super::super::vector::{shade_deferred, Skips, Vol};
     use super::super::vwalk::exp;
+    use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
@@ -201,12 +202,8 @@ mod vector {
         // Skipping: the blocks' skip distances, and the base grid.
         let (stv, inv_st) = (S::splat(pk.st), S::splat(1.0 / pk.st));
         let inv_d = [one / d[0], one / d[1], one / d[2]];
-        let inv_bs = S::splat(1.0 / f.block_size as f32);
-        let bsv = S::splat(f.block_size as f32);
-        let [cx, cy, cz] = [0, 1, 2].map(|a| f.block_counts[a] as i32);
-        let bmax = [S::splat_i(cx - 1), S::splat_i(cy - 1), S::splat_i(cz - 1)];
-        let (ncx, ncy) = (S::splat_i(cx), S::splat_i(cy));
-        let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
+        let skips = Skips::<S>::of(pk);
+        let rays = Rays { o, d, inv_d, t0 };
         let mut live = S::from_bits(live_bits);
         let (mut cnt, mut cnt_shaded) = (S::splat_i(0), S::splat_i(0));
         loop {
@@ -217,28 +214,12 @@ mod vector {
             let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
             let mut samp = act;
             if SKIP {
-                let c = vol.clamp(p);
-                let b3 = [
-                    block::<S>(c[0], d[0], inv_bs, bmax[0]),
-                    block::<S>(c[1], d[1], inv_bs, bmax[1]),
-                    block::<S>(c[2], d[2], inv_bs, bmax[2]),
-                ];
-                let b = b3[0] + S::mullo(ncx, b3[1] + S::mullo(ncy, b3[2]));
-                let e = S::gather::<4>(empty, b);
-                let skip = S::and(act, S::positive(e));
+                let (skip, te) = skips.exit(&vol, p, &rays, act);
                 if S::bits(skip) != 0 {
                     // Past the empty cube around the block, on the base grid
                     // (a thousandth of a step early, as the fixed step skips:
                     // a sample still inside is tested again), and at least
                     // the base grid's next sample.
-                    let r = S::to_f(e);
-                    let te = S::min(
-                        S::min(
-                            exit::<S>(o[0], d[0], inv_d[0], b3[0], r, bsv),
-                            exit::<S>(o[1], d[1], inv_d[1], b3[1], r, bsv),
-                        ),
-                        exit::<S>(o[2], d[2], inv_d[2], b3[2], r, bsv),
-                    );
                     let kn = S::ceil((te - t0) * inv_st - S::splat(1e-3));
                     // (A lane a thousandth of a step or less before a
                     // grid point counts as on it.)

@@ -78,14 +78,7 @@ unsafe fn trilinear<S: Simd>(c: [S::F; 8], [fx, fy, fz]: [S::F; 3]) -> S::F {
 /// to the axis). By the reciprocal, not a division: off by an ulp or so,
 /// which the caller's margin covers.
 #[inline(always)]
-pub(super) unsafe fn exit<S: Simd>(
-    o: S::F,
-    d: S::F,
-    inv_d: S::F,
-    b: S::I,
-    r: S::F,
-    bs: S::F,
-) -> S::F {
+unsafe fn exit<S: Simd>(o: S::F, d: S::F, inv_d: S::F, b: S::I, r: S::F, bs: S::F) -> S::F {
     let zero = S::splat(0.0);
     let up = S::gt(d, zero);
     let face = (S::to_f(b) + S::blend(up, S::splat(1.0) - r, r)) * bs;
@@ -98,11 +91,79 @@ pub(super) unsafe fn exit<S: Simd>(
 /// face belongs to the block the ray is leaving, as in `BlockWalker`),
 /// clamped to `0..=top`.
 #[inline(always)]
-pub(super) unsafe fn block<S: Simd>(c: S::F, d: S::F, inv_bs: S::F, top: S::I) -> S::I {
+unsafe fn block<S: Simd>(c: S::F, d: S::F, inv_bs: S::F, top: S::I) -> S::I {
     let q = c * inv_bs;
     let down = S::lt(d, S::splat(0.0));
     let b = S::blend(down, S::floor(q), S::ceil(q) - S::splat(1.0));
     S::min_i(S::max_i(S::to_i(b), S::splat_i(0)), top)
+}
+
+/// Empty-space skipping as the lanes read it: each block's skip distance
+/// (`Packets::empty`) and the block grid.
+pub(super) struct Skips<S: Simd> {
+    empty: *const i32,
+    inv_bs: S::F,
+    bs: S::F,
+    top: [S::I; 3],
+    ncx: S::I,
+    ncy: S::I,
+}
+
+impl<S: Simd> Skips<S> {
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub(super) unsafe fn of<T: Voxel, R: Runs<T>>(pk: &Packets<'_, T, R>) -> Self {
+        let f = pk.f;
+        let [cx, cy, cz] = [0, 1, 2].map(|a| f.block_counts[a] as i32);
+        Skips {
+            empty: pk.empty.map_or(std::ptr::null(), |e| e.as_ptr()),
+            inv_bs: S::splat(1.0 / f.block_size as f32),
+            bs: S::splat(f.block_size as f32),
+            top: [S::splat_i(cx - 1), S::splat_i(cy - 1), S::splat_i(cz - 1)],
+            ncx: S::splat_i(cx),
+            ncy: S::splat_i(cy),
+        }
+    }
+
+    /// The lanes of `act` whose samples `p` lie in an empty block (the
+    /// block walk's rule: on a face, a ray going down belongs to the
+    /// block below), and their exits from the empty cube around it: the
+    /// nearest far face (unspecified where the mask is empty).
+    ///
+    /// # Safety
+    /// The width's instructions; `pk.empty` was set.
+    #[inline(always)]
+    pub(super) unsafe fn exit(
+        &self,
+        vol: &Vol<S>,
+        p: [S::F; 3],
+        r: &Rays<S>,
+        act: S::M,
+    ) -> (S::M, S::F) {
+        let c = vol.clamp(p);
+        let d = r.d;
+        let b3 = [
+            block::<S>(c[0], d[0], self.inv_bs, self.top[0]),
+            block::<S>(c[1], d[1], self.inv_bs, self.top[1]),
+            block::<S>(c[2], d[2], self.inv_bs, self.top[2]),
+        ];
+        let b = b3[0] + S::mullo(self.ncx, b3[1] + S::mullo(self.ncy, b3[2]));
+        let e = S::gather::<4>(self.empty, b);
+        let skip = S::and(act, S::positive(e));
+        if S::bits(skip) == 0 {
+            return (skip, S::splat(0.0));
+        }
+        let (o, inv_d, re, bs) = (r.o, r.inv_d, S::to_f(e), self.bs);
+        let te = S::min(
+            S::min(
+                exit::<S>(o[0], d[0], inv_d[0], b3[0], re, bs),
+                exit::<S>(o[1], d[1], inv_d[1], b3[1], re, bs),
+            ),
+            exit::<S>(o[2], d[2], inv_d[2], b3[2], re, bs),
+        );
+        (skip, te)
+    }
 }
 
 /// The grid as the lanes read it (see `Grid::sample`).
@@ -514,27 +575,16 @@ unsafe fn march<
     let one = S::splat(1.0);
     // For the skips' exits: no division in the loop.
     let inv_d = [one / d[0], one / d[1], one / d[2]];
+    let rays = Rays { o, d, inv_d, t0 };
     let inv_st = S::splat(1.0 / pk.st);
     // The lanes' block walks in vector registers, where the rule allows.
     let mut vw = match pk.runs.and_then(|r| r.vector()) {
-        Some(p) if R::ON => Some(VWalk::<S>::new(
-            p,
-            st,
-            f.block_counts,
-            f.block_size,
-            Rays { o, d, inv_d, t0 },
-        )),
+        Some(p) if R::ON => Some(VWalk::<S>::new(p, st, f.block_counts, f.block_size, rays)),
         _ => None,
     };
     // `lod`'s walk (its runs are the step-per-block ones).
     let mut vl = match pk.runs.and_then(|r| r.lod()) {
-        Some(p) if R::ON => Some(VLod::<S>::new(
-            p,
-            st,
-            f.block_counts,
-            f.block_size,
-            Rays { o, d, inv_d, t0 },
-        )),
+        Some(p) if R::ON => Some(VLod::<S>::new(p, st, f.block_counts, f.block_size, rays)),
         _ => None,
     };
     // Shading: deferred where the colour is only summed (see `shade`):
@@ -561,12 +611,7 @@ unsafe fn march<
     let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
     let mut dq = Deferred::new();
     // Blocks, for skipping.
-    let inv_bs = S::splat(1.0 / f.block_size as f32);
-    let bsv = S::splat(f.block_size as f32);
-    let [cx, cy, cz] = [0, 1, 2].map(|a| f.block_counts[a] as i32);
-    let bmax = [S::splat_i(cx - 1), S::splat_i(cy - 1), S::splat_i(cz - 1)];
-    let (ncx, ncy) = (S::splat_i(cx), S::splat_i(cy));
-    let empty = pk.empty.map_or(std::ptr::null(), |e| e.as_ptr());
+    let skips = Skips::<S>::of(pk);
     // Lane state.
     let mut live = S::from_bits(live_bits);
     let mut walked = S::from_bits(0);
@@ -593,7 +638,6 @@ unsafe fn march<
     // fetching its first stretch.
     let (mut vi, mut is) = match &pk.imp {
         Some(ip) if IMP => {
-            let rays = Rays { o, d, inv_d, t0 };
             let (v, is) = VImp::<S>::new(ip, st, f.block_counts, f.block_size, &rays);
             (Some(v), is)
         }
@@ -646,28 +690,8 @@ unsafe fn march<
         let mut samp = act;
         let mut next = kv + one;
         if SKIP {
-            let c = vol.clamp(p);
-            // The block walk's rule: on a face, a ray going down
-            // belongs to the block below.
-            let b3 = [
-                block::<S>(c[0], d[0], inv_bs, bmax[0]),
-                block::<S>(c[1], d[1], inv_bs, bmax[1]),
-                block::<S>(c[2], d[2], inv_bs, bmax[2]),
-            ];
-            let b = b3[0] + S::mullo(ncx, b3[1] + S::mullo(ncy, b3[2]));
-            let e = S::gather::<4>(empty, b);
-            let skip = S::and(act, S::positive(e));
+            let (skip, te) = skips.exit(&vol, p, &rays, act);
             if S::bits(skip) != 0 {
-                // The lane's exit from the empty cube around its block:
-                // the nearest far face.
-                let r = S::to_f(e);
-                let te = S::min(
-                    S::min(
-                        exit::<S>(o[0], d[0], inv_d[0], b3[0], r, bsv),
-                        exit::<S>(o[1], d[1], inv_d[1], b3[1], r, bsv),
-                    ),
-                    exit::<S>(o[2], d[2], inv_d[2], b3[2], r, bsv),
-                );
                 // First sample past the exit (a thousandth of a step
                 // early, more than the reciprocals' rounding: a sample
                 // still inside is tested again, never one skipped).
