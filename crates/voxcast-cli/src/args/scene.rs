@@ -168,10 +168,12 @@ pub struct SceneArgs {
     /// Optical model.
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub optical: Option<OpticalArg>,
-    /// CPU inner loop: `auto` runs eight rays per SIMD packet where the CPU
-    /// has AVX2 and the render is a fixed step (uniform, jitter), not grouped,
-    /// front to back, compiled for AVX-512 where the CPU has it; `avx2` keeps
-    /// the packets to AVX2; `scalar` always runs the scalar loop (the same
+    /// CPU inner loop: `auto` marches sixteen rays per SIMD packet (one
+    /// AVX-512 register, or two of AVX2) where the CPU has AVX2, for
+    /// front-to-back renders of uniform, jitter, importance, the adaptive methods and
+    /// uniform (grouped or not), lod and threshold (threshold+grouped,
+    /// stratified, mc and back to front run the scalar loop); `avx2` keeps the
+    /// packets to AVX2; `scalar` always runs the scalar loop (the same
     /// picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,
