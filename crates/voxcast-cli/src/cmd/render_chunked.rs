@@ -82,9 +82,12 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
         }
         return Ok(Some(Plan::InCore(level, Box::new(store))));
     }
+    // The level is asked for, or chosen per region: `level` near the eye,
+    // coarser where the voxels of a coarser level are still no larger than
+    // a pixel.
     let ooc = OutOfCoreParams {
         budget,
-        level: Some(level),
+        level: scene.input.options.level,
         ..Default::default()
     };
     Ok(Some(Plan::OutOfCore(Box::new(store), ooc)))
@@ -176,11 +179,26 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
     if prepared.geometry.is_some() {
         bail!("--geometry: opaque geometry is not rendered out of core; render without it, or give a --memory-budget the level fits in");
     }
-    let level = ooc.level.unwrap_or(0);
+    let (lo, hi) = outofcore::world_bounds(levels);
+    let cam = Camera::fit(
+        &scene.camera,
+        lo,
+        hi,
+        scene.render.width,
+        scene.render.height,
+    );
+    let level = ooc
+        .level
+        .unwrap_or_else(|| outofcore::choose_level(levels, &cam, ooc.lod_scale));
     let l = &levels[level];
+    let how = if ooc.level.is_some() || level + 1 == levels.len() {
+        "as asked".to_string()
+    } else {
+        "near the eye, coarser levels where their voxels are no larger than a pixel".to_string()
+    };
     if !quiet {
         eprintln!(
-            "opened {} — {} levels, level 0 {}×{}×{} {} ({}); rendering level {level} ({}×{}×{}, chunks {}×{}×{}) out of core within {}; window [{}, {}] from level {coarsest} ({:.2} s)",
+            "opened {} — {} levels, level 0 {}×{}×{} {} ({}); rendering level {level} ({}×{}×{}, chunks {}×{}×{}) {how}, out of core within {}; window [{}, {}] from level {coarsest} ({:.2} s)",
             scene.input.path,
             levels.len(),
             levels[0].dims[0],
@@ -225,7 +243,7 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
     bar.finish_and_clear();
     let mut extra = serde_json::Map::new();
     extra.insert("device".into(), "cpu, out of core".into());
-    extra.insert("out_of_core".into(), serde_json::to_value(oo)?);
+    extra.insert("out_of_core".into(), serde_json::to_value(&oo)?);
     extra.insert("budget_bytes".into(), ooc.budget.into());
     super::render::write_outputs(
         a,
@@ -240,12 +258,12 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
     outputs.commit()?;
     if !quiet {
         eprintln!(
-            "wrote {} ({}×{}) in {:.3} s out of core: level {}, {} of {} bricks marched ({} empty, {} off-image, {} hidden), read {} from the store ({} decoded), cache hits {:.0} %, peak {} of {}; {} samples ({:.1} M/s)",
+            "wrote {} ({}×{}) in {:.3} s out of core: {}, {} of {} bricks marched ({} empty, {} off-image, {} hidden), read {} from the store ({} decoded), cache hits {:.0} %, peak {} of {}; {} samples ({:.1} M/s)",
             out.display(),
             image.width,
             image.height,
             stats.seconds,
-            oo.level,
+            levels_marched(&oo),
             oo.marched,
             oo.bricks,
             oo.empty,
@@ -261,4 +279,21 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
         );
     }
     Ok(())
+}
+
+/// The levels an out-of-core render read, with the bricks marched at
+/// each: "level 1" or "levels 1…3 (212, 96, 7 bricks)".
+fn levels_marched(oo: &outofcore::OutOfCoreStats) -> String {
+    if oo.coarsest == oo.level {
+        return format!("level {}", oo.level);
+    }
+    let counts: Vec<String> = (oo.level..=oo.coarsest)
+        .map(|l| oo.per_level.get(l).copied().unwrap_or(0).to_string())
+        .collect();
+    format!(
+        "levels {}…{} ({} bricks)",
+        oo.level,
+        oo.coarsest,
+        counts.join(", ")
+    )
 }

@@ -5,7 +5,7 @@
 
 use super::cache::{Chunk, ChunkCache};
 use super::march::{self, BrickFrame, Px, RowCount};
-use super::Geo;
+use super::plan::LevelGeo;
 use crate::error::{Error, Result};
 use crate::render::composite::Weights;
 use crate::render::packet;
@@ -19,11 +19,15 @@ use std::sync::Arc;
 
 /// A brick's frame before the grid is typed.
 pub(super) struct FrameArgs<'a> {
+    /// The brick's level, in terms of the base.
+    pub(super) geo: &'a LevelGeo<'a>,
     pub(super) data_lo: Vec3,
     pub(super) own_lo: Vec3,
     pub(super) own_hi: Vec3,
     pub(super) lut: &'a Lut,
+    /// The premultiplied table of one of the level's steps.
     pub(super) q: &'a [[f32; 4]; crate::transfer::LUT_SIZE],
+    /// The base level's step (world units).
     pub(super) st: f32,
     pub(super) unit: f32,
     pub(super) inv_spacing: Vec3,
@@ -93,18 +97,17 @@ impl BrickBuf {
     /// those chunks (`None`: nothing finite).
     pub(super) fn assemble(
         &mut self,
-        geo: &Geo<'_>,
+        geo: &LevelGeo<'_>,
         dbox: ([u64; 3], [u64; 3]),
         chunks: &[[u64; 3]],
         ranges: &[ChunkRange],
-        cidx: impl Fn([u64; 3]) -> usize,
         cache: &ChunkCache<'_>,
     ) -> Result<Option<(f32, f32)>> {
         match self {
-            BrickBuf::U8(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
-            BrickBuf::U16(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
-            BrickBuf::I16(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
-            BrickBuf::F32(v) => fill_box(v, geo, dbox, chunks, ranges, &cidx, cache),
+            BrickBuf::U8(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+            BrickBuf::U16(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+            BrickBuf::I16(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+            BrickBuf::F32(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
         }
     }
 
@@ -137,11 +140,10 @@ impl BrickBuf {
 
 fn fill_box<T: Stored>(
     out: &mut Vec<T>,
-    geo: &Geo<'_>,
+    geo: &LevelGeo<'_>,
     (lo, hi): ([u64; 3], [u64; 3]),
     chunks: &[[u64; 3]],
     ranges: &[ChunkRange],
-    cidx: &impl Fn([u64; 3]) -> usize,
     cache: &ChunkCache<'_>,
 ) -> Result<Option<(f32, f32)>> {
     let d: [usize; 3] = std::array::from_fn(|a| (hi[a] - lo[a]) as usize);
@@ -173,7 +175,7 @@ fn fill_box<T: Stored>(
             continue;
         }
         let cd: [usize; 3] = std::array::from_fn(|i| (chi[i] - clo[i]) as usize);
-        if let ChunkRange::Fill(v) = ranges[cidx(k)] {
+        if let ChunkRange::Fill(v) = ranges[geo.level.chunk_index(k)] {
             if v.is_finite() {
                 widen((v, v));
             }
@@ -334,6 +336,7 @@ fn march_rows<T: Stored>(
 ) -> RowCount {
     let f = BrickFrame {
         grid: Grid::new(data, dims, a.window[0], a.window[1]),
+        geo: a.geo,
         data_lo: a.data_lo,
         own_lo: a.own_lo,
         own_hi: a.own_hi,
@@ -369,6 +372,8 @@ fn march_rows<T: Stored>(
     // inside the brick but its last one, from the colour it holds; the
     // scalar loop then takes what is left (the ray's last sample, where it
     // falls in this brick).
+    // The level's step: `stride` base steps.
+    let st_l = a.st * a.geo.stride as f32;
     let z_pairs = T::z_pairs(data, dims);
     let frame = Frame {
         grid: &f.grid,
@@ -377,7 +382,7 @@ fn march_rows<T: Stored>(
         box_hi: Vec3::from(dims.map(|d| (d - 1) as f32)),
         origin_w: Vec3::ZERO,
         inv_spacing: a.inv_spacing,
-        step: a.st,
+        step: st_l,
         unit: a.unit,
         skip_empty: a.cells.is_some(),
         block_size: a.cells.map_or(1, |_| CELL),
@@ -389,7 +394,7 @@ fn march_rows<T: Stored>(
     let pk: packet::Packets<'_, _> = packet::Packets {
         f: &frame,
         q: a.q,
-        st: a.st,
+        st: st_l,
         weights: Weights {
             emission: a.emission,
             absorption: a.absorption,
@@ -409,9 +414,10 @@ fn march_rows<T: Stored>(
         let mut n = RowCount::default();
         for group in row[x0 as usize..x1 as usize].chunks_mut(packet::LANES) {
             let mut lanes = [None; packet::LANES];
+            let mut next = [0u32; packet::LANES];
             let mut acc = [Vec4::ZERO; packet::LANES];
             for (i, p) in group.iter().enumerate() {
-                lanes[i] = march::lane(&f, p);
+                (lanes[i], next[i]) = march::lane(&f, p).map_or((None, 0), |(l, n)| (Some(l), n));
                 acc[i] = p.finish();
             }
             if lanes.iter().any(Option::is_some) {
@@ -419,10 +425,12 @@ fn march_rows<T: Stored>(
                 let mut alive = [false; packet::LANES];
                 pk.march_lanes(&lanes, &mut acc, &mut count, &mut alive);
                 for (i, p) in group.iter_mut().enumerate() {
-                    let Some(l) = lanes[i] else { continue };
+                    if lanes[i].is_none() {
+                        continue;
+                    }
                     p.c = acc[i].truncate();
                     p.a = acc[i].w;
-                    p.next = l.k_end;
+                    p.next = next[i];
                     n.samples += count[i][0] as u64;
                     n.shaded += count[i][1] as u64;
                     if !alive[i] {

@@ -2,8 +2,12 @@
 //! its ray's state between bricks — composited colour and opacity, and the
 //! index of its next sample on the grid `t₀ + k·step` — so bricks taken in
 //! visibility order march each ray's samples in order, each exactly once,
-//! at the positions the in-core `uniform` march takes them.
+//! at the positions the in-core `uniform` march takes them. The rays are
+//! in the base level's voxel coordinates (the finest level the frame
+//! reads); a brick of a coarser level takes every `stride`-th sample of the
+//! base grid, in its own voxel coordinates (see the `plan` module).
 
+use super::plan::LevelGeo;
 use crate::render::march::intersect_box;
 use crate::render::optics::over_front;
 use crate::render::packet::Lane;
@@ -18,7 +22,7 @@ pub(super) struct Px {
     /// Premultiplied colour and opacity so far.
     pub c: Vec3,
     pub a: f32,
-    /// The ray in the level's voxel coordinates (`t` in world units).
+    /// The ray in the base level's voxel coordinates (`t` in world units).
     pub o: Vec3,
     pub d: Vec3,
     /// Towards the eye (world), for shading.
@@ -35,7 +39,7 @@ pub(super) struct Px {
 }
 
 impl Px {
-    /// The pixel's ray clipped to the level's sample box `[lo, hi]`;
+    /// The pixel's ray clipped to the base level's sample box `[lo, hi]`;
     /// `jitter` the start offset in steps (0 without jitter).
     pub fn start(o: Vec3, d: Vec3, view: Vec3, (lo, hi): (Vec3, Vec3), st: f32, jitter: f32) -> Px {
         let mut p = Px {
@@ -73,14 +77,18 @@ impl Px {
 /// What one brick's march shares.
 pub(super) struct BrickFrame<'a, T> {
     pub grid: Grid<'a, T>,
+    /// The brick's level, in terms of the base.
+    pub geo: &'a LevelGeo<'a>,
     /// The brick's data box starts at this voxel (level coordinates).
     pub data_lo: Vec3,
-    /// The samples the brick owns lie in `[own_lo, own_hi]`.
+    /// The samples the brick owns lie in `[own_lo, own_hi]` (base
+    /// coordinates).
     pub own_lo: Vec3,
     pub own_hi: Vec3,
     pub lut: &'a Lut,
-    /// The premultiplied table of one step.
+    /// The premultiplied table of one of the level's steps.
     pub q: &'a [[f32; 4]; LUT_SIZE],
+    /// The base step (world units).
     pub st: f32,
     pub unit: f32,
     pub inv_spacing: Vec3,
@@ -102,8 +110,10 @@ pub(super) struct RowCount {
 /// The packets' lane for the samples of `px` in the brick but the ray's
 /// last (which the scalar [`march`] composites with its stretch): the
 /// brick's own box clipped as [`march`] clips it, in the brick's voxel
-/// coordinates. `None` when there is no such sample.
-pub(super) fn lane<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<Lane> {
+/// coordinates, stepping the level's step from the ray's next sample; and
+/// the ray's next sample once the lane is marched. `None` when there is no
+/// such sample.
+pub(super) fn lane<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<(Lane, u32)> {
     if !px.live {
         return None;
     }
@@ -119,16 +129,30 @@ pub(super) fn lane<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<Lane> {
     while kb < u32::MAX && px.t0 + kb as f32 * f.st < tb {
         kb += 1;
     }
-    let k_end = kb.min(px.last);
-    (k0 < k_end).then(|| Lane {
-        o: px.o - f.data_lo,
-        d: px.d,
-        view: px.view,
-        t0: px.t0,
-        t_end: px.t_end,
-        k0,
-        k_end,
-        last: None,
+    // The brick takes samples k0, k0 + m, …: in the lane's terms, samples
+    // j of the grid t0 + phase·st + j·(m·st) (for m = 1, the ray's own).
+    let m = f.geo.stride;
+    let phase = k0 % m;
+    if px.last < phase {
+        return None;
+    }
+    let j_exit = (kb.saturating_sub(phase)).div_ceil(m);
+    let j_last = (px.last - phase) / m;
+    let (j0, j_end) = (k0 / m, j_exit.min(j_last));
+    (j0 < j_end).then(|| {
+        (
+            Lane {
+                o: f.geo.to_level(px.o) - f.data_lo,
+                d: f.geo.dir_to_level(px.d),
+                view: px.view,
+                t0: px.t0 + phase as f32 * f.st,
+                t_end: px.t_end,
+                k0: j0,
+                k_end: j_end,
+                last: None,
+            },
+            phase + j_end * m,
+        )
     })
 }
 
@@ -143,6 +167,8 @@ pub(super) fn march<T: Voxel>(f: &BrickFrame<'_, T>, px: &mut Px, n: &mut RowCou
     };
     let first = ((ta - px.t0) / f.st).ceil().max(0.0);
     let mut k = px.next.max(first.min(u32::MAX as f32) as u32);
+    let (o, d) = (f.geo.to_level(px.o), f.geo.dir_to_level(px.d));
+    let m = f.geo.stride;
     while k <= px.last {
         let t = px.t0 + k as f32 * f.st;
         if t >= tb {
@@ -150,11 +176,12 @@ pub(super) fn march<T: Voxel>(f: &BrickFrame<'_, T>, px: &mut Px, n: &mut RowCou
         }
         // The in-core march's position, then an exact shift by whole voxels
         // (p ≥ data_lo, so the difference is representable): the same
-        // trilinear weights and voxels as the in-core render.
-        let p = px.o + px.d * t;
+        // trilinear weights and voxels as the in-core render (at the base
+        // level, where `o` and `d` are the ray's own).
+        let p = o + d * t;
         let value = f.grid.sample(p - f.data_lo);
         n.samples += 1;
-        k += 1;
+        k = k.saturating_add(m);
         let Some(i) = Lut::index(value) else {
             continue;
         };
@@ -169,7 +196,7 @@ pub(super) fn march<T: Voxel>(f: &BrickFrame<'_, T>, px: &mut Px, n: &mut RowCou
             n.shaded += 1;
             e = bp.shade(Vec3::new(c[0], c[1], c[2]), g, f.inv_spacing, px.view) * alpha;
         }
-        if k - 1 == px.last {
+        if k > px.last {
             // The last sample stands for the stretch up to the ray's end.
             let ds = (px.t_end - t).max(0.0);
             let a2 = 1.0 - (-f.lut.sigma(i) * ds / f.unit).exp();

@@ -2,18 +2,21 @@
 //! ([`ChunkedSource`]: OME-Zarr, or a volume in memory) under a memory
 //! budget.
 //!
-//! 1. **Level**: the coarsest level whose voxel is no larger than a pixel
-//!    where the volume comes nearest the eye (a full-screen view of 2048³
-//!    at 1024² reads level 1; zooming in reads level 0), or the one asked.
-//! 2. **Bricks**: the level's chunks. A brick whose chunks (and the border
-//!    its interpolation reads) are all transparent under the transfer
+//! 1. **Levels**: near the eye the coarsest level whose voxel is no larger
+//!    than a pixel where the volume comes nearest the eye (a full-screen
+//!    view of 2048³ at 1024² reads level 1; zooming in reads level 0), and
+//!    further off, per chunk, the coarsest level fine enough there (the
+//!    `plan` module); or the one level asked.
+//! 2. **Bricks**: the chunks so chosen. A brick whose chunks (and the
+//!    border its interpolation reads) are all transparent under the transfer
 //!    function — known from the store's chunk ranges, or because a chunk is
 //!    not stored — is skipped without reading it; so is one outside the
 //!    image.
 //! 3. **Visibility order**: bricks sorted by the sum over axes of their
-//!    index distance from the eye's brick (a ray's distance on each axis
-//!    never shrinks, so every ray meets its bricks in this order; for an
-//!    orthographic camera, by position along the view direction).
+//!    index distance from the eye's brick, among siblings, depth first (a
+//!    ray's distance on each axis never shrinks, so every ray meets its
+//!    bricks in this order; for an orthographic camera, by position along
+//!    the view direction).
 //! 4. **March**: each brick, with a border of one voxel (two with shading)
 //!    copied from its neighbours, marches the samples of every pixel whose
 //!    ray crosses it, in parallel by rows; each pixel keeps its colour,
@@ -30,6 +33,7 @@
 mod brick;
 mod cache;
 mod march;
+mod plan;
 
 pub use cache::{human_bytes, parse_bytes, CacheStats};
 
@@ -87,11 +91,16 @@ pub fn default_budget() -> u64 {
 }
 
 /// What an out-of-core render read and skipped.
-#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct OutOfCoreStats {
-    /// The level rendered.
+    /// The finest level rendered (the one near the eye).
     pub level: usize,
-    /// Bricks (chunks) of that level.
+    /// The coarsest level rendered (regions far from the eye).
+    pub coarsest: usize,
+    /// Bricks marched at each level (index: the level).
+    pub per_level: Vec<usize>,
+    /// Bricks considered: chunks of the levels rendered, where each region
+    /// is read at one level.
     pub bricks: usize,
     /// Bricks marched.
     pub marched: usize,
@@ -183,61 +192,6 @@ pub(crate) fn check_uniform(params: &RenderParams, who: &str, way_out: &str) -> 
     Ok(())
 }
 
-/// One brick of the plan.
-struct Brick {
-    chunk: [u64; 3],
-    /// Pixel rectangle `[x0, x1) × [y0, y1)` its rays may cross.
-    rect: [u32; 4],
-    /// Chunks its data box reads (the brick's and its border's).
-    chunks: Vec<[u64; 3]>,
-}
-
-/// The per-level facts the plan and the march share.
-struct Geo<'a> {
-    level: &'a Level,
-    lidx: usize,
-    /// Border voxels below and above each brick.
-    border: (u64, u64),
-    sample_box: (Vec3, Vec3),
-}
-
-impl Geo<'_> {
-    /// The samples chunk `c` owns, in voxel coordinates.
-    fn own_box(&self, c: [u64; 3]) -> (Vec3, Vec3) {
-        let (lo, hi) = self.level.chunk_box(c);
-        let (slo, shi) = self.sample_box;
-        let lo = Vec3::from(lo.map(|v| v as f32)).max(slo);
-        let hi = Vec3::from(hi.map(|v| v as f32)).min(shi);
-        (lo, hi)
-    }
-
-    /// The voxels chunk `c`'s brick reads: its own and the border.
-    fn data_box(&self, c: [u64; 3]) -> ([u64; 3], [u64; 3]) {
-        let (lo, hi) = self.level.chunk_box(c);
-        let d = self.level.dims;
-        (
-            std::array::from_fn(|a| lo[a].saturating_sub(self.border.0)),
-            std::array::from_fn(|a| (hi[a] + self.border.1).min(d[a])),
-        )
-    }
-
-    /// The chunks a voxel box meets.
-    fn chunks_of(&self, (lo, hi): ([u64; 3], [u64; 3])) -> Vec<[u64; 3]> {
-        let ch = self.level.chunk.map(|c| c as u64);
-        let a: [u64; 3] = std::array::from_fn(|i| lo[i] / ch[i]);
-        let b: [u64; 3] = std::array::from_fn(|i| (hi[i] - 1) / ch[i]);
-        let mut v = Vec::new();
-        for z in a[2]..=b[2] {
-            for y in a[1]..=b[1] {
-                for x in a[0]..=b[0] {
-                    v.push([x, y, z]);
-                }
-            }
-        }
-        v
-    }
-}
-
 /// The level's sample box in voxel coordinates (as [`crate::volume::Volume::sample_box`]).
 fn sample_box(dims: [u64; 3]) -> (Vec3, Vec3) {
     let ax = |d: u64| {
@@ -284,11 +238,11 @@ pub struct OutOfCore<'s> {
     ranges: std::sync::Mutex<std::collections::HashMap<usize, std::sync::Arc<Vec<ChunkRange>>>>,
 }
 
-/// The cell ranges of bricks marched so far, by (level, chunk, shaded
-/// border), and the bytes they hold.
+/// The cell ranges of bricks marched so far, by level and the voxel box
+/// the brick reads, and the bytes they hold.
 #[derive(Default)]
 struct CellStore {
-    map: std::collections::HashMap<(usize, [u64; 3], bool), std::sync::Arc<CellRanges>>,
+    map: std::collections::HashMap<(usize, [u64; 3], [u64; 3]), std::sync::Arc<CellRanges>>,
     bytes: u64,
 }
 
@@ -405,116 +359,88 @@ impl<'s> OutOfCore<'s> {
         let (w, h) = (params.width, params.height);
         let (lo, hi) = world_bounds(levels);
         let cam = Camera::fit(camera, lo, hi, w, h);
-        let lidx = self.level_for(&cam)?;
-        let level = &levels[lidx];
+        let fine = self.level_for(&cam)?;
+        // Coarser levels where they nest and no level or part was asked.
+        let coarse = if self.ooc.level.is_some() || part.is_some() {
+            fine
+        } else {
+            let f = plan::factors(levels);
+            (fine + 1..levels.len())
+                .take_while(|&l| f[l].is_some())
+                .last()
+                .unwrap_or(fine)
+        };
         let ty = source.scalar_type();
         let shading = params.shading.then(BlinnPhong::default);
         // Eight rays per SIMD packet where the CPU and the shading allow
         // (the in-core rule), else the scalar loop.
         let packets = crate::render::packet::level(params.simd)
             .filter(|_| shading.is_none_or(|bp| crate::render::packet::shades(&bp)));
-        let geo = Geo {
-            level,
-            lidx,
-            border: if shading.is_some() { (1, 2) } else { (0, 1) },
-            sample_box: sample_box(level.dims),
-        };
-        // The budget must hold one brick and the chunks it reads.
-        let brick_bytes = level
-            .chunk
-            .iter()
-            .map(|&c| c as u64 + geo.border.0 + geo.border.1)
-            .product::<u64>()
-            * ty.size() as u64;
-        let per_brick = if shading.is_some() { 27 } else { 8 };
-        let need = brick_bytes + per_brick * level.chunk_bytes(ty);
-        if ooc.budget < need {
-            return Err(cache::too_small(
-            ooc.budget,
-            need,
-            &format!(
-                "chunks of {}×{}×{} {} at level {lidx}: one brick with its border and the {per_brick} chunks it reads",
-                level.chunk[0], level.chunk[1], level.chunk[2], ty
-            ),
-        ));
-        }
         let window = widen(window);
-        // What the store knows of each chunk, without reading it.
-        let counts = level.chunk_counts();
-        let cidx = |c: [u64; 3]| (c[0] + counts[0] * (c[1] + counts[1] * c[2])) as usize;
-        let n_chunks = counts.iter().product::<u64>() as usize;
-        let ranges = self.ranges(lidx);
         let transparent = |lo: f32, hi: f32| range_transparent(tf, window, lo, hi);
         let known_empty = |r: &ChunkRange| known_empty(tf, window, r);
 
         // The plan: the bricks to march, in visibility order.
-        let inside =
-            |c: [u64; 3]| part.is_none_or(|(lo, hi)| (0..3).all(|a| c[a] >= lo[a] && c[a] < hi[a]));
+        let planner = plan::Planner {
+            levels,
+            cam: &cam,
+            size: (w, h),
+            fine,
+            coarse,
+            lod_scale: ooc.lod_scale,
+            shaded: shading.is_some(),
+            part,
+        };
+        let plan = planner.plan(&|l| self.ranges(l), &known_empty);
+        let base = plan.base;
+        let geos: Vec<plan::LevelGeo> = (0..levels.len())
+            .map(|l| plan::LevelGeo::new(levels, base, l, shading.is_some()))
+            .collect();
         let mut stats = OutOfCoreStats {
-            level: lidx,
-            bricks: part.map_or(n_chunks, |(lo, hi)| {
-                (0..3).map(|a| hi[a].saturating_sub(lo[a])).product::<u64>() as usize
-            }),
+            level: base,
+            coarsest: base,
+            bricks: plan.considered,
+            culled: plan.culled,
+            empty: plan.empty,
             ..Default::default()
         };
-        let mut plan: Vec<(i64, Brick)> = Vec::new();
-        let to_world = |p: Vec3| level.origin + p * level.spacing;
-        let inv_spacing = Vec3::ONE / level.spacing;
-        let eye_v = (cam.eye - level.origin) * inv_spacing;
-        let ch = level.chunk.map(|c| c as f32);
-        for i in 0..n_chunks as u64 {
-            let c = [
-                i % counts[0],
-                (i / counts[0]) % counts[1],
-                i / (counts[0] * counts[1]),
-            ];
-            if !inside(c) {
-                continue;
+        // The budget must hold one brick and the chunks it reads.
+        let brick_need = |b: &plan::Brick| {
+            let vox: u64 = (0..3).map(|a| b.dbox.1[a] - b.dbox.0[a]).product();
+            vox * ty.size() as u64 + b.chunks.len() as u64 * levels[b.lidx].chunk_bytes(ty)
+        };
+        if let Some(b) = plan.bricks.iter().max_by_key(|b| brick_need(b)) {
+            let need = brick_need(b);
+            if ooc.budget < need {
+                let c = levels[b.lidx].chunk;
+                return Err(cache::too_small(
+                    ooc.budget,
+                    need,
+                    &format!(
+                        "chunks of {}×{}×{} {ty} at level {}: one brick with its border and the {} chunks it reads",
+                        c[0], c[1], c[2], b.lidx, b.chunks.len()
+                    ),
+                ));
             }
-            let (olo, ohi) = geo.own_box(c);
-            let Some(rect) = screen_rect(&cam, to_world(olo), to_world(ohi), w, h) else {
-                stats.culled += 1;
-                continue;
-            };
-            let chunks = geo.chunks_of(geo.data_box(c));
-            if chunks.iter().all(|&k| known_empty(&ranges[cidx(k)])) {
-                stats.empty += 1;
-                continue;
-            }
-            let key = if cam.is_orthographic() {
-                (0..3)
-                    .map(|a| {
-                        if cam.forward[a] >= 0.0 {
-                            c[a] as i64
-                        } else {
-                            counts[a] as i64 - 1 - c[a] as i64
-                        }
-                    })
-                    .sum()
-            } else {
-                (0..3)
-                    .map(|a| {
-                        let e = (eye_v[a] / ch[a]).floor() as i64;
-                        (c[a] as i64 - e).abs()
-                    })
-                    .sum()
-            };
-            plan.push((
-                key,
-                Brick {
-                    chunk: c,
-                    rect,
-                    chunks,
-                },
-            ));
         }
-        plan.sort_by_key(|b| b.0);
-        let plan: Vec<Brick> = plan.into_iter().map(|b| b.1).collect();
+        let ranges: Vec<std::sync::Arc<Vec<ChunkRange>>> = (0..levels.len())
+            .map(|l| {
+                if plan.bricks.iter().any(|b| b.lidx == l) {
+                    self.ranges(l)
+                } else {
+                    Default::default()
+                }
+            })
+            .collect();
+        let plan = plan.bricks;
 
-        // Every pixel's ray.
+        // Every pixel's ray, in the base level's voxel coordinates.
+        let blevel = &levels[base];
+        let inv_spacing = Vec3::ONE / blevel.spacing;
         let unit = levels[0].spacing.min_element();
-        let st = params.step * level.spacing.min_element();
+        let st = params.step * blevel.spacing.min_element();
         let jitter = (params.jitter || params.method == Method::Jitter).then_some(params.seed);
+        let sbox = sample_box(blevel.dims);
         let mut px: Vec<Px> = (0..w * h)
             .into_par_iter()
             .map(|i| {
@@ -522,10 +448,10 @@ impl<'s> OutOfCore<'s> {
                 let (o, d) = cam.ray(x, y);
                 let u = jitter.map_or(0.0, |s| crate::render::rng::pixel_sequence(s, x, y, 0));
                 Px::start(
-                    (o - level.origin) * inv_spacing,
+                    (o - blevel.origin) * inv_spacing,
                     d * inv_spacing,
                     -d,
-                    geo.sample_box,
+                    sbox,
                     st,
                     u,
                 )
@@ -534,17 +460,25 @@ impl<'s> OutOfCore<'s> {
         let hit = px.iter().filter(|p| p.live).count() as u64;
 
         let lut = Lut::new(tf, params.step);
-        let q = lut.premultiplied(st / unit);
+        // Each level's premultiplied table, for its step (`stride` base
+        // steps).
+        let mut tables: Vec<Option<Box<[[f32; 4]; LUT_SIZE]>>> = vec![None; levels.len()];
+        for b in &plan {
+            tables[b.lidx]
+                .get_or_insert_with(|| lut.premultiplied(st * geos[b.lidx].stride as f32 / unit));
+        }
         // Whether a sample interpolated from values in `[lo, hi]` may show:
         // its table entry (the nearest, `Lut::index`) lies between those of
         // `lo` and `hi`, and the march skips the entries of zero opacity.
         // `shown[i]` is the first entry from `i` on that has opacity. (A
         // margin of a whole entry, as before, made every cell of zeros
         // "visible" under a map whose opacity rises from 0, such as the
-        // cloud's: nothing was skipped.)
+        // cloud's: nothing was skipped.) Opacity is zero at one step exactly
+        // where it is at any.
+        let q0 = lut.premultiplied(st / unit);
         let mut shown = vec![LUT_SIZE; LUT_SIZE + 1];
         for i in (0..LUT_SIZE).rev() {
-            shown[i] = if q[i][3] > 0.0 { i } else { shown[i + 1] };
+            shown[i] = if q0[i][3] > 0.0 { i } else { shown[i + 1] };
         }
         let visible = |lo: f32, hi: f32| {
             // A hair of margin for the interpolation's rounding.
@@ -571,8 +505,14 @@ impl<'s> OutOfCore<'s> {
         let done = AtomicBool::new(false);
         let mut counts_total = RowCount::default();
         let mut error: Option<Error> = None;
-        let chunk_bytes = level.chunk_bytes(ty).max(1);
-        let lookahead = ((ooc.budget - brick_bytes) / (16 * chunk_bytes)).min(64) as usize;
+        let chunk_bytes = plan
+            .iter()
+            .map(|b| levels[b.lidx].chunk_bytes(ty))
+            .max()
+            .unwrap_or(0)
+            .max(1);
+        let biggest = plan.iter().map(brick_need).max().unwrap_or(0);
+        let lookahead = (ooc.budget.saturating_sub(biggest) / (16 * chunk_bytes)).min(64) as usize;
         std::thread::scope(|scope| {
             if ooc.prefetch && lookahead > 0 {
                 let (plan, cursor, done, ranges) = (&plan, &cursor, &done, &ranges);
@@ -584,17 +524,18 @@ impl<'s> OutOfCore<'s> {
                             }
                             std::thread::sleep(std::time::Duration::from_micros(200));
                         }
+                        let level = &levels[b.lidx];
                         for &k in &b.chunks {
                             if done.load(Ordering::Acquire) {
                                 return;
                             }
-                            if matches!(ranges[cidx(k)], ChunkRange::Fill(_))
-                                || cache.has((lidx, k))
+                            if matches!(ranges[b.lidx][level.chunk_index(k)], ChunkRange::Fill(_))
+                                || cache.has((b.lidx, k))
                             {
                                 continue;
                             }
                             // An error is the render thread's to report.
-                            let _ = cache.get((lidx, k));
+                            let _ = cache.get((b.lidx, k));
                         }
                     }
                 });
@@ -617,9 +558,10 @@ impl<'s> OutOfCore<'s> {
                     progress(j + 1, plan.len());
                     continue;
                 }
+                let geo = &geos[b.lidx];
                 let t = Instant::now();
-                let dbox = geo.data_box(b.chunk);
-                match buf.assemble(&geo, dbox, &b.chunks, &ranges, cidx, cache) {
+                let dbox = b.dbox;
+                match buf.assemble(geo, dbox, &b.chunks, &ranges[b.lidx], cache) {
                     Ok(Some((lo, hi))) if transparent(lo, hi) => {
                         stats.wait_seconds += t.elapsed().as_secs_f64();
                         stats.empty += 1;
@@ -638,13 +580,13 @@ impl<'s> OutOfCore<'s> {
                     }
                 }
                 stats.wait_seconds += t.elapsed().as_secs_f64();
-                let (olo, ohi) = geo.own_box(b.chunk);
+                let (olo, ohi) = b.own;
                 let dims = std::array::from_fn(|a| (dbox.1[a] - dbox.0[a]) as usize);
                 let data_lo = Vec3::from(dbox.0.map(|v| v as f32));
                 // Samples outside the box around the brick's visible cells are
                 // transparent: the march skips them, and the packets skip
                 // the empty cells inside it.
-                let key = (lidx, b.chunk, shading.is_some());
+                let key = (b.lidx, dbox.0, dbox.1);
                 let kept = self
                     .cells
                     .lock()
@@ -668,22 +610,35 @@ impl<'s> OutOfCore<'s> {
                     progress(j + 1, plan.len());
                     continue;
                 };
-                let (olo, ohi) = (olo.max(vlo + data_lo), ohi.min(vhi + data_lo));
+                // (A face on the level's edge stays open: a coarser
+                // level's region reaches past its last voxel centres, and
+                // the samples there read the edge's cells, clamped.)
+                let d = Vec3::from(geo.level.dims.map(|v| v as f32 - 1.0));
+                let (vlo, vhi) = (vlo + data_lo, vhi + data_lo);
+                let vlo = Vec3::select(vlo.cmple(Vec3::ZERO), Vec3::NEG_INFINITY, vlo);
+                let vhi = Vec3::select(vhi.cmpge(d), Vec3::INFINITY, vhi);
+                let (olo, ohi) = (olo.max(geo.to_base(vlo)), ohi.min(geo.to_base(vhi)));
                 if (0..3).any(|a| olo[a] > ohi[a]) {
                     stats.empty += 1;
                     progress(j + 1, plan.len());
                     continue;
                 }
                 stats.marched += 1;
+                if stats.per_level.len() <= b.lidx {
+                    stats.per_level.resize(b.lidx + 1, 0);
+                }
+                stats.per_level[b.lidx] += 1;
+                stats.coarsest = stats.coarsest.max(b.lidx);
                 let frame = FrameArgs {
+                    geo,
                     data_lo,
                     own_lo: olo,
                     own_hi: ohi,
                     lut: &lut,
-                    q: &q,
+                    q: tables[b.lidx].as_deref().unwrap_or(&q0),
                     st,
                     unit,
-                    inv_spacing,
+                    inv_spacing: Vec3::ONE / geo.level.spacing,
                     emission,
                     absorption,
                     stop,

@@ -332,3 +332,108 @@ fn cells_of_zeros_are_skipped_under_a_map_whose_opacity_rises_from_zero() {
         s_in.samples
     );
 }
+
+/// An f32 volume of `dims` voxels whose value at voxel `(x, y, z)` is
+/// `f(x, y, z)`.
+fn field(dims: [usize; 3], f: impl Fn(f32, f32, f32) -> f32) -> Volume {
+    let data: Vec<f32> = (0..dims[0] * dims[1] * dims[2])
+        .map(|i| {
+            let (x, y, z) = (i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1]));
+            f(x as f32, y as f32, z as f32)
+        })
+        .collect();
+    Volume::new(dims, Vec3::ONE, Vec3::ZERO, VoxelData::F32(data.into())).unwrap()
+}
+
+/// A close perspective view, at an image size where the far half of the
+/// volume needs only the coarser levels.
+fn close_view() -> (CameraParams, RenderParams) {
+    let mut cam = camera(1.0, Projection::Perspective);
+    cam.azimuth = 40.0;
+    cam.elevation = 25.0;
+    (cam, params(64, false))
+}
+
+fn per_region(budget: u64) -> OutOfCoreParams {
+    OutOfCoreParams {
+        level: None,
+        ..level0(budget)
+    }
+}
+
+#[test]
+fn levels_chosen_by_region_cover_each_stretch_of_a_ray_once() {
+    // A constant field looks the same at every level (its means are the
+    // value itself, and a coarser level's sample stands for as many base
+    // steps as it skips): a region read at another level must leave no
+    // gap and take no sample twice where it meets its neighbours.
+    let vol = field([96, 80, 64], |_, _, _| 0.5);
+    let tf = TransferFunction::preset("grayscale").unwrap();
+    let src = MemorySource::new(vol, 2, [16; 3]).unwrap();
+    let (cam, mut p) = close_view();
+    p.ert = 1.0;
+    for shading in [false, true] {
+        p.shading = shading;
+        for simd in [crate::render::Simd::Auto, crate::render::Simd::Scalar] {
+            p.simd = simd;
+            let (mixed, s) = out_of_core(&src, &tf, &cam, &p, &per_region(64 << 20));
+            let (fine, s0) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
+            let levels = s.per_level.iter().filter(|&&n| n > 0).count();
+            assert!(
+                s.level == 0 && s.coarsest > 0 && levels >= 2,
+                "one level only: {s:?}"
+            );
+            assert!(
+                s.cache.decoded_bytes < s0.cache.decoded_bytes,
+                "{s:?} {s0:?}"
+            );
+            let worst = worst_diff(&mixed, &fine);
+            assert!(worst < 1e-4, "shading {shading} {simd:?}: {worst}");
+        }
+    }
+}
+
+#[test]
+fn a_region_read_at_a_coarser_level_samples_the_same_places() {
+    // A linear field: each level's means are its values at the coarser
+    // voxels' centres and trilinear interpolation is exact, so every level
+    // holds the same field. A brick mapping the base's coordinates to its
+    // level's wrongly (half a voxel off) shows at once; what is left is
+    // the clamping at the volume's faces, where a coarser level's last
+    // voxel centre lies inside.
+    let vol = field([96, 80, 64], |x, y, z| (x + 0.7 * y + 0.4 * z) / 180.0);
+    let tf = TransferFunction::preset("viridis").unwrap();
+    let src = MemorySource::new(vol, 2, [16; 3]).unwrap();
+    let (cam, p) = close_view();
+    // A narrow window: the colour changes by 3 % a voxel.
+    let render = |ooc: &OutOfCoreParams| {
+        let no = AtomicBool::new(false);
+        let (img, _, st) =
+            render_chunked(&src, &tf, [0.4, 0.6], &cam, &p, ooc, &|_, _| {}, &no).unwrap();
+        (img, st)
+    };
+    let (mixed, s) = render(&per_region(64 << 20));
+    let (fine, _) = render(&level0(64 << 20));
+    assert!(s.coarsest > 0, "{s:?}");
+    let db = psnr(&fine, &mixed).unwrap();
+    assert!(db >= 60.0, "{db:.1} dB");
+}
+
+#[test]
+fn the_levels_follow_the_distance() {
+    // Near the eye the finest level, further off coarser ones: the
+    // bricks marched per level, for a close view and a far one.
+    let vol = field([96, 80, 64], |x, _, _| x / 96.0);
+    let tf = TransferFunction::preset("grayscale").unwrap();
+    let src = MemorySource::new(vol, 2, [16; 3]).unwrap();
+    let (cam, p) = close_view();
+    let (_, near) = out_of_core(&src, &tf, &cam, &p, &per_region(64 << 20));
+    assert_eq!((near.level, near.coarsest), (0, 1), "{near:?}");
+    // The same view at half the pixels each way: a level coarser.
+    let small = params(32, false);
+    let (_, far) = out_of_core(&src, &tf, &cam, &small, &per_region(64 << 20));
+    assert_eq!((far.level, far.coarsest), (1, 2), "{far:?}");
+    // An asked level is the only one read.
+    let (_, one) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
+    assert_eq!((one.level, one.coarsest), (0, 0), "{one:?}");
+}
