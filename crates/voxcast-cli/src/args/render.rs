@@ -87,7 +87,9 @@ pub struct RenderArgs {
     /// For a chunked store (OME-Zarr): the most decoded voxels held at once
     /// (e.g. 512MiB, 2GiB; default half the memory available). A level that
     /// fits is read whole and rendered as usual; a larger one is rendered
-    /// out of core, chunk by chunk, never holding more than this.
+    /// out of core, chunk by chunk, never holding more than this, each
+    /// region at the coarsest level whose voxel is no larger than a pixel
+    /// there (finer near the eye; `--level N` reads one level).
     #[arg(long, value_name = "BYTES", value_parser = parse_budget, help_heading = "Large volumes")]
     pub memory_budget: Option<u64>,
     /// Render a chunked store out of core even where its level fits the

@@ -41,8 +41,9 @@ pub struct OpenArgs {
     #[arg(long, value_name = "T", help_heading = "Input")]
     pub time: Option<f64>,
     /// Resolution level of a multi-resolution store (OME-Zarr), 0 the
-    /// finest. `render` otherwise picks the coarsest level whose voxel is no
-    /// larger than a pixel; `info` lists the levels.
+    /// finest, everywhere. `render` otherwise picks the coarsest level whose
+    /// voxel is no larger than a pixel where the volume is nearest (out of
+    /// core: per region, coarser further off); `info` lists the levels.
     #[arg(long, value_name = "N", help_heading = "Input")]
     pub level: Option<usize>,
 }
