@@ -41,14 +41,7 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
     let store = ZarrStore::open_with(path, &scene.input.options)?;
     let levels = store.levels();
     let budget = a.memory_budget.unwrap_or_else(outofcore::default_budget);
-    let (lo, hi) = outofcore::world_bounds(levels);
-    let cam = Camera::fit(
-        &scene.camera,
-        lo,
-        hi,
-        scene.render.width,
-        scene.render.height,
-    );
+    let cam = camera_over(scene, levels);
     let level = match scene.input.options.level {
         Some(l) if l >= levels.len() => bail!(
             "--level {l}: {} has levels 0…{}",
@@ -179,14 +172,7 @@ pub fn run(a: &RenderArgs, scene: &Scene, store: &ZarrStore, ooc: &OutOfCorePara
     if prepared.geometry.is_some() {
         bail!("--geometry: opaque geometry is not rendered out of core; render without it, or give a --memory-budget the level fits in");
     }
-    let (lo, hi) = outofcore::world_bounds(levels);
-    let cam = Camera::fit(
-        &scene.camera,
-        lo,
-        hi,
-        scene.render.width,
-        scene.render.height,
-    );
+    let cam = camera_over(scene, levels);
     let level = ooc
         .level
         .unwrap_or_else(|| outofcore::choose_level(levels, &cam, ooc.lod_scale));
@@ -295,5 +281,18 @@ fn levels_marched(oo: &outofcore::OutOfCoreStats) -> String {
         oo.level,
         oo.coarsest,
         counts.join(", ")
+    )
+}
+
+/// The scene's camera framing level 0's box, as the out-of-core renderer
+/// frames it.
+fn camera_over(scene: &Scene, levels: &[voxcast::volume::Level]) -> Camera {
+    let (lo, hi) = outofcore::world_bounds(levels);
+    Camera::fit(
+        &scene.camera,
+        lo,
+        hi,
+        scene.render.width,
+        scene.render.height,
     )
 }

@@ -250,12 +250,14 @@ impl<'s> OutOfCore<'s> {
     /// Prepares `source` for rendering within `ooc.budget`.
     pub fn new(source: &'s dyn ChunkedSource, ooc: OutOfCoreParams) -> OutOfCore<'s> {
         // The brick being marched is held beside the cache: the largest a
-        // brick of any level can be (a shaded one, with its border of 3).
+        // brick of any level can be: a shaded one, with its border of 3, or
+        // 4 for a coarser level's region, which sits a fraction of a voxel
+        // off its chunk.
         let ty = source.scalar_type();
         let brick_max = source
             .levels()
             .iter()
-            .map(|l| l.chunk.iter().map(|&c| c as u64 + 3).product::<u64>() * ty.size() as u64)
+            .map(|l| l.chunk.iter().map(|&c| c as u64 + 4).product::<u64>() * ty.size() as u64)
             .max()
             .unwrap_or(0);
         let cache = ChunkCache::new(source, ooc.budget.saturating_sub(brick_max));

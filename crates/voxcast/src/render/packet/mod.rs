@@ -643,6 +643,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 #[cfg(target_arch = "x86_64")]
 mod simd;
 #[cfg(target_arch = "x86_64")]
+mod tail;
+#[cfg(target_arch = "x86_64")]
 mod vector;
 #[cfg(target_arch = "x86_64")]
 mod vwalk;

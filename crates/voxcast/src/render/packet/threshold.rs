@@ -68,13 +68,13 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 mod vector {
     use super::super::shade::{Deferred, Light};
     use super::super::simd::{Simd, W16, W8};
+    use super::super::tail::{drain_deferred, store_lanes};
     use super::super::vector::{shade_deferred, Skips, Vol};
     use super::super::vwalk::exp;
     use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
-    use glam::Vec4;
 
     /// The `threshold` lanes' loop at AVX2: two packets of eight.
     ///
@@ -280,25 +280,8 @@ mod vector {
             t = S::blend(samp, t, t + step);
         }
         if SHADE {
-            while dq.waiting() > 0 {
-                shade_deferred::<S, T>(&mut dq, &vol, &light, view);
-            }
-            for (c, acc) in dq.acc.iter().enumerate() {
-                col[c] = col[c] + S::load_at(acc.as_ptr());
-            }
+            drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);
         }
-        let col = [
-            S::store(col[0]),
-            S::store(col[1]),
-            S::store(col[2]),
-            S::store(col[3]),
-        ];
-        let (c, cs) = (S::store_i(cnt), S::store_i(cnt_shaded));
-        let l = S::bits(live);
-        for i in 0..S::N {
-            st.acc[i] = Vec4::new(col[0][i], col[1][i], col[2][i], col[3][i]);
-            st.count[i] = [c[i] as u32, cs[i] as u32, c[i] as u32];
-            st.alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
-        }
+        store_lanes::<S>(st, lanes, col, [cnt, cnt_shaded, cnt], live);
     }
 }

@@ -6,11 +6,11 @@ use super::importance::{ImpState, VImp};
 use super::lod::VLod;
 use super::shade::{Deferred, Light};
 use super::simd::{Simd, W16, W8};
+use super::tail::{drain_deferred, store_lanes};
 use super::vwalk::{Rays, VWalk};
 use super::walk::{walk_runs, RunRegs, SLOT_AL, SLOT_P, SLOT_Q, SLOT_W};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::{Voxel, VoxelKind};
-use glam::Vec4;
 
 /// The values at `idx` and `idx + 1` (element indices) of `data`, as
 /// floats: one 32-bit gather for both where the type allows.
@@ -841,29 +841,14 @@ unsafe fn march<
         queue_slots::<S, T>(&mut dq, &rr, out, &vol, &light, view);
     }
     if defer || defer_runs {
-        while dq.waiting() > 0 {
-            shade_deferred::<S, T>(&mut dq, &vol, &light, view);
-        }
-        for (c, acc) in dq.acc.iter().enumerate() {
-            col[c] = col[c] + S::load_at(acc.as_ptr());
-        }
+        drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);
     }
-    let col = [
-        S::store(col[0]),
-        S::store(col[1]),
-        S::store(col[2]),
-        S::store(col[3]),
-    ];
-    let (c, cs, ci) = (
-        S::store_i(cnt),
-        S::store_i(cnt_shaded),
-        S::store_i(cnt_interp),
-    );
     // Lanes whose walk ended count as alive (not terminated early).
-    let l = S::bits(S::or(live, walked));
-    for i in 0..S::N {
-        st.acc[i] = Vec4::new(col[0][i], col[1][i], col[2][i], col[3][i]);
-        st.count[i] = [c[i] as u32, cs[i] as u32, ci[i] as u32];
-        st.alive[i] = lanes[i].is_some() && (l >> i) & 1 == 1;
-    }
+    store_lanes::<S>(
+        st,
+        lanes,
+        col,
+        [cnt, cnt_shaded, cnt_interp],
+        S::or(live, walked),
+    );
 }
