@@ -122,16 +122,14 @@ impl<'a> LevelGeo<'a> {
         let ch = self.level.chunk.map(|c| c as u64);
         let a: [u64; 3] = std::array::from_fn(|i| lo[i] / ch[i]);
         let b: [u64; 3] = std::array::from_fn(|i| (hi[i] - 1) / ch[i]);
-        let mut v = Vec::new();
-        for z in a[2]..=b[2] {
-            for y in a[1]..=b[1] {
-                for x in a[0]..=b[0] {
-                    v.push([x, y, z]);
-                }
-            }
-        }
-        v
+        cells(a, b.map(|v| v + 1)).collect()
     }
+}
+
+/// The indices of the box `[lo, hi)`, x fastest.
+fn cells(lo: [u64; 3], hi: [u64; 3]) -> impl Iterator<Item = [u64; 3]> {
+    (lo[2]..hi[2])
+        .flat_map(move |z| (lo[1]..hi[1]).flat_map(move |y| (lo[0]..hi[0]).map(move |x| [x, y, z])))
 }
 
 /// Each level's downsampling factor per axis from the level before it
@@ -363,20 +361,14 @@ impl Planner<'_> {
     ) {
         let top = self.coarse;
         let counts = self.levels[top].chunk_counts();
-        let mut roots: Vec<(i64, [u64; 3])> = Vec::new();
-        for z in 0..counts[2] {
-            for y in 0..counts[1] {
-                for x in 0..counts[0] {
-                    let c = [x, y, z];
-                    if let Some((lo, hi)) = self.part {
-                        if !(0..3).all(|a| c[a] >= lo[a] && c[a] < hi[a]) {
-                            continue;
-                        }
-                    }
-                    roots.push((self.key(top, c, base, cum), c));
-                }
-            }
-        }
+        let inside = |c: [u64; 3]| {
+            self.part
+                .is_none_or(|(lo, hi)| (0..3).all(|a| c[a] >= lo[a] && c[a] < hi[a]))
+        };
+        let mut roots: Vec<(i64, [u64; 3])> = cells([0; 3], counts)
+            .filter(|&c| inside(c))
+            .map(|c| (self.key(top, c, base, cum), c))
+            .collect();
         roots.sort_by_key(|r| r.0);
         for (_, c) in roots {
             self.descend(top, c, base, cum, out, culled);
@@ -404,30 +396,17 @@ impl Planner<'_> {
             return;
         }
         // The chunks of level l − 1 this one covers.
-        let (fl, ch, chf) = (
-            cum[l][0..3]
-                .iter()
-                .zip(&cum[l - 1])
-                .map(|(a, b)| a / b)
-                .collect::<Vec<_>>(),
-            self.levels[l].chunk,
-            self.levels[l - 1].chunk,
-        );
+        let (ch, chf) = (self.levels[l].chunk, self.levels[l - 1].chunk);
+        let fl: [u64; 3] = std::array::from_fn(|a| cum[l][a] / cum[l - 1][a]);
         let n = self.levels[l - 1].chunk_counts();
         let span: [(u64, u64); 3] = std::array::from_fn(|a| {
             let lo = c[a] * ch[a] as u64 * fl[a] / chf[a] as u64;
             let hi = ((c[a] + 1) * ch[a] as u64 * fl[a]).div_ceil(chf[a] as u64);
             (lo, hi.min(n[a]))
         });
-        let mut kids: Vec<(i64, [u64; 3])> = Vec::with_capacity(8);
-        for z in span[2].0..span[2].1 {
-            for y in span[1].0..span[1].1 {
-                for x in span[0].0..span[0].1 {
-                    let k = [x, y, z];
-                    kids.push((self.key(l - 1, k, base, cum), k));
-                }
-            }
-        }
+        let mut kids: Vec<(i64, [u64; 3])> = cells(span.map(|s| s.0), span.map(|s| s.1))
+            .map(|k| (self.key(l - 1, k, base, cum), k))
+            .collect();
         kids.sort_by_key(|k| k.0);
         for (_, k) in kids {
             self.descend(l - 1, k, base, cum, out, culled);
