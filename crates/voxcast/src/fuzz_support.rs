@@ -482,6 +482,7 @@ fn zarr_render(store: &io::zarr::ZarrStore) -> Outcome {
         level: Some(level),
         lod_scale: 1.0,
         prefetch: false,
+        resident_only: false,
     };
     let params = RenderParams {
         width: 8,

@@ -121,6 +121,26 @@ impl<'s> ChunkCache<'s> {
         self.lock().slots.contains_key(&k)
     }
 
+    /// Chunk `k` if it is in memory (marked as just used), without
+    /// reading.
+    pub fn peek(&self, k: Key) -> Option<Arc<Chunk>> {
+        let mut g = self.lock();
+        g.clock += 1;
+        let now = g.clock;
+        match g.slots.get_mut(&k) {
+            Some(Slot::Ready { chunk, used }) => {
+                *used = now;
+                Some(chunk.clone())
+            }
+            _ => None,
+        }
+    }
+
+    /// The bytes of decoded chunks it keeps.
+    pub fn budget(&self) -> u64 {
+        self.budget
+    }
+
     /// Chunk `k`, from memory or read from the source.
     pub fn get(&self, k: Key) -> Result<Arc<Chunk>> {
         let mut g = self.lock();

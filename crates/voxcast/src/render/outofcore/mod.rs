@@ -65,6 +65,12 @@ pub struct OutOfCoreParams {
     pub lod_scale: f32,
     /// Read ahead on a second thread while the render marches.
     pub prefetch: bool,
+    /// Never wait for a read (a viewer): each region is drawn at the finest
+    /// level it needs whose chunks are in memory — the coarsest level's
+    /// are read if they are not — and the chunks that finer regions would
+    /// read are listed in [`OutOfCoreStats::wanted`], for a loader to read
+    /// with [`OutOfCore::fetch`] before the next frame.
+    pub resident_only: bool,
 }
 
 impl Default for OutOfCoreParams {
@@ -74,6 +80,7 @@ impl Default for OutOfCoreParams {
             level: None,
             lod_scale: 1.0,
             prefetch: true,
+            resident_only: false,
         }
     }
 }
@@ -115,7 +122,15 @@ pub struct OutOfCoreStats {
     pub cache: CacheStats,
     /// Seconds spent waiting for chunks on the render thread.
     pub wait_seconds: f64,
+    /// With [`OutOfCoreParams::resident_only`]: the chunks to read for a
+    /// finer picture, coarser levels first, as many as fit the budget
+    /// beside those the frame used.
+    #[serde(skip)]
+    pub wanted: Vec<ChunkKey>,
 }
+
+/// A chunk of a store: its level and index (x, y, z).
+pub type ChunkKey = (usize, [u64; 3]);
 
 impl OutOfCoreStats {
     /// Share of chunk requests answered from memory.
@@ -308,6 +323,15 @@ impl<'s> OutOfCore<'s> {
         self.cache.stats()
     }
 
+    /// Reads chunk `k` into the cache unless it is there (for a loader
+    /// beside resident-only renders); true when it read.
+    pub fn fetch(&self, k: ChunkKey) -> Result<bool> {
+        if self.cache.has(k) {
+            return Ok(false);
+        }
+        self.cache.get(k).map(|_| true)
+    }
+
     /// Renders one image; see [`render_chunked`].
     pub fn render(
         &self,
@@ -392,13 +416,46 @@ impl<'s> OutOfCore<'s> {
             lod_scale: ooc.lod_scale,
             shaded: shading.is_some(),
             part,
+            resident: None,
         };
-        let plan = planner.plan(&|l| self.ranges(l), &known_empty);
+        // Resident only: the chunks the plan finds in memory are held
+        // (the cache cannot evict them) until the frame is drawn.
+        let held = std::cell::RefCell::new(std::collections::HashMap::new());
+        let resident = |l: usize, k: [u64; 3]| match self.cache.peek((l, k)) {
+            Some(c) => {
+                held.borrow_mut().insert((l, k), c);
+                true
+            }
+            None => false,
+        };
+        let planner = plan::Planner {
+            resident: ooc.resident_only.then_some(&resident as _),
+            ..planner
+        };
+        let mut plan = planner.plan(&|l| self.ranges(l), &known_empty);
         let base = plan.base;
         let geos: Vec<plan::LevelGeo> = (0..levels.len())
             .map(|l| plan::LevelGeo::new(levels, base, l, shading.is_some()))
             .collect();
+        // Wanted: as many as fit beside the chunks this frame reads.
+        let mut wanted = std::mem::take(&mut plan.wanted);
+        if !wanted.is_empty() {
+            let mut used: std::collections::HashSet<ChunkKey> =
+                held.borrow().keys().copied().collect();
+            used.extend(
+                plan.bricks
+                    .iter()
+                    .flat_map(|b| b.chunks.iter().map(|&k| (b.lidx, k))),
+            );
+            let mut bytes: u64 = used.iter().map(|k| levels[k.0].chunk_bytes(ty)).sum();
+            let room = self.cache.budget();
+            wanted.retain(|k| {
+                bytes += levels[k.0].chunk_bytes(ty);
+                bytes <= room
+            });
+        }
         let mut stats = OutOfCoreStats {
+            wanted,
             level: base,
             coarsest: base,
             bricks: plan.considered,
@@ -516,7 +573,7 @@ impl<'s> OutOfCore<'s> {
         let biggest = plan.iter().map(brick_need).max().unwrap_or(0);
         let lookahead = (ooc.budget.saturating_sub(biggest) / (16 * chunk_bytes)).min(64) as usize;
         std::thread::scope(|scope| {
-            if ooc.prefetch && lookahead > 0 {
+            if ooc.prefetch && !ooc.resident_only && lookahead > 0 {
                 let (plan, cursor, done, ranges) = (&plan, &cursor, &done, &ranges);
                 scope.spawn(move || {
                     for (j, b) in plan.iter().enumerate() {

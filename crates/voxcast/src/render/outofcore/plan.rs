@@ -177,6 +177,10 @@ pub(super) struct Plan {
     pub(super) considered: usize,
     pub(super) culled: usize,
     pub(super) empty: usize,
+    /// With [`Planner::resident`]: the chunks, not in memory, that finer
+    /// regions would read — coarser levels first, then in visibility
+    /// order, each once.
+    pub(super) wanted: Vec<(usize, [u64; 3])>,
 }
 
 /// What the planner is given.
@@ -193,6 +197,21 @@ pub(super) struct Planner<'a> {
     /// Only chunks of `fine` inside this box (a part of a sort-last
     /// render; one level only).
     pub(super) part: Option<super::ChunkBox>,
+    /// Render only what is in memory (a viewer that must not wait for a
+    /// read): a chunk splits into its finer children only where every
+    /// chunk they read is resident (`resident(level, chunk)`); the others
+    /// go to [`Plan::wanted`].
+    pub(super) resident: Option<&'a dyn Fn(usize, [u64; 3]) -> bool>,
+}
+
+/// What a walk of the level tree gathers.
+struct Walk<'r> {
+    cum: Vec<[u64; 3]>,
+    ranges: &'r dyn Fn(usize) -> std::sync::Arc<Vec<ChunkRange>>,
+    empty: &'r dyn Fn(&ChunkRange) -> bool,
+    leaves: Vec<(usize, [u64; 3])>,
+    culled: usize,
+    wanted: Vec<(usize, [u64; 3])>,
 }
 
 impl Planner<'_> {
@@ -213,21 +232,39 @@ impl Planner<'_> {
         empty: &dyn Fn(&ChunkRange) -> bool,
     ) -> Plan {
         let f = factors(self.levels);
-        let cum: Vec<[u64; 3]> = (0..self.levels.len())
-            .map(|l| self.cumulative(&f, l))
-            .collect();
+        let mut walk = Walk {
+            cum: (0..self.levels.len())
+                .map(|l| self.cumulative(&f, l))
+                .collect(),
+            ranges,
+            empty,
+            leaves: Vec::new(),
+            culled: 0,
+            wanted: Vec::new(),
+        };
         // Leaves do not depend on the base; their order does (it follows
         // the base's chunk boundaries). The base is `fine` unless every
-        // region near the eye is off the image.
-        let mut leaves = Vec::new();
-        let mut culled = 0;
-        self.walk(self.fine, &cum, &mut leaves, &mut culled);
-        let base = leaves.iter().map(|l| l.0).min().unwrap_or(self.fine);
+        // region near the eye is off the image (or, resident only, not in
+        // memory yet).
+        self.walk(self.fine, &mut walk);
+        let base = walk.leaves.iter().map(|l| l.0).min().unwrap_or(self.fine);
         if base != self.fine {
-            leaves.clear();
-            culled = 0;
-            self.walk(base, &cum, &mut leaves, &mut culled);
+            walk.leaves.clear();
+            walk.culled = 0;
+            walk.wanted.clear();
+            self.walk(base, &mut walk);
         }
+        let Walk {
+            cum,
+            leaves,
+            culled,
+            mut wanted,
+            ..
+        } = walk;
+        // Coarser first (a view refines evenly), in visibility order.
+        let mut seen = std::collections::HashSet::new();
+        wanted.retain(|k| seen.insert(*k));
+        wanted.sort_by_key(|k| std::cmp::Reverse(k.0));
         let b = &self.levels[base];
         let sbox = sample_box(b.dims);
         let to_world = |p: Vec3| b.origin + p * b.spacing;
@@ -237,6 +274,7 @@ impl Planner<'_> {
             considered: leaves.len() + culled,
             culled,
             empty: 0,
+            wanted,
         };
         let mut kept: Vec<Option<std::sync::Arc<Vec<ChunkRange>>>> = vec![None; self.levels.len()];
         for (l, c) in leaves {
@@ -351,14 +389,8 @@ impl Planner<'_> {
     }
 
     /// The leaves `(level, chunk)` in visibility order for `base`, counting
-    /// the subtrees off the image in `culled`.
-    fn walk(
-        &self,
-        base: usize,
-        cum: &[[u64; 3]],
-        out: &mut Vec<(usize, [u64; 3])>,
-        culled: &mut usize,
-    ) {
+    /// the subtrees off the image.
+    fn walk(&self, base: usize, w: &mut Walk<'_>) {
         let top = self.coarse;
         let counts = self.levels[top].chunk_counts();
         let inside = |c: [u64; 3]| {
@@ -367,37 +399,29 @@ impl Planner<'_> {
         };
         let mut roots: Vec<(i64, [u64; 3])> = cells([0; 3], counts)
             .filter(|&c| inside(c))
-            .map(|c| (self.key(top, c, base, cum), c))
+            .map(|c| (self.key(top, c, base, &w.cum), c))
             .collect();
         roots.sort_by_key(|r| r.0);
         for (_, c) in roots {
-            self.descend(top, c, base, cum, out, culled);
+            self.descend(top, c, base, w);
         }
     }
 
-    fn descend(
-        &self,
-        l: usize,
-        c: [u64; 3],
-        base: usize,
-        cum: &[[u64; 3]],
-        out: &mut Vec<(usize, [u64; 3])>,
-        culled: &mut usize,
-    ) {
-        let wbox = self.world_box(l, c, cum);
+    fn descend(&self, l: usize, c: [u64; 3], base: usize, w: &mut Walk<'_>) {
+        let wbox = self.world_box(l, c, &w.cum);
         if l > self.fine
             && screen_rect(self.cam, wbox.0, wbox.1, self.size.0, self.size.1).is_none()
         {
-            *culled += 1;
+            w.culled += 1;
             return;
         }
         if self.fine_enough(l, wbox) {
-            out.push((l, c));
+            w.leaves.push((l, c));
             return;
         }
         // The chunks of level l − 1 this one covers.
         let (ch, chf) = (self.levels[l].chunk, self.levels[l - 1].chunk);
-        let fl: [u64; 3] = std::array::from_fn(|a| cum[l][a] / cum[l - 1][a]);
+        let fl: [u64; 3] = std::array::from_fn(|a| w.cum[l][a] / w.cum[l - 1][a]);
         let n = self.levels[l - 1].chunk_counts();
         let span: [(u64, u64); 3] = std::array::from_fn(|a| {
             let lo = c[a] * ch[a] as u64 * fl[a] / chf[a] as u64;
@@ -405,11 +429,60 @@ impl Planner<'_> {
             (lo, hi.min(n[a]))
         });
         let mut kids: Vec<(i64, [u64; 3])> = cells(span.map(|s| s.0), span.map(|s| s.1))
-            .map(|k| (self.key(l - 1, k, base, cum), k))
+            .map(|k| (self.key(l - 1, k, base, &w.cum), k))
             .collect();
         kids.sort_by_key(|k| k.0);
+        if let Some(resident) = self.resident {
+            // Split only where the children are in memory; else this
+            // chunk stands for them, and what they lack is wanted.
+            let before = w.wanted.len();
+            for &(_, k) in &kids {
+                self.wants(l - 1, k, resident, w);
+            }
+            if w.wanted.len() > before {
+                w.leaves.push((l, c));
+                return;
+            }
+        }
         for (_, k) in kids {
-            self.descend(l - 1, k, base, cum, out, culled);
+            self.descend(l - 1, k, base, w);
+        }
+    }
+
+    /// Adds to `w.wanted` the chunks level `l`'s chunk `k` reads (with
+    /// every neighbour its border may reach) that are not resident, unless
+    /// it is off the image or known to be transparent.
+    fn wants(
+        &self,
+        l: usize,
+        k: [u64; 3],
+        resident: &dyn Fn(usize, [u64; 3]) -> bool,
+        w: &mut Walk<'_>,
+    ) {
+        let wbox = self.world_box(l, k, &w.cum);
+        if screen_rect(self.cam, wbox.0, wbox.1, self.size.0, self.size.1).is_none() {
+            return;
+        }
+        let level = &self.levels[l];
+        let (lo, hi) = level.chunk_box(k);
+        // A region sits up to a voxel off its chunk (a coarser level's
+        // half-voxel shift, rounded out), and reads one voxel more above
+        // (two with shading) and one below with shading.
+        let g = self.shaded as u64;
+        let dbox = (
+            lo.map(|v| v.saturating_sub(1 + g)),
+            std::array::from_fn(|a| (hi[a] + 2 + g).min(level.dims[a])),
+        );
+        let geo = LevelGeo::new(self.levels, l, l, self.shaded);
+        let chunks = geo.chunks_of(dbox);
+        let r = (w.ranges)(l);
+        if chunks.iter().all(|&q| (w.empty)(&r[level.chunk_index(q)])) {
+            return;
+        }
+        for q in chunks {
+            if !matches!(r[level.chunk_index(q)], ChunkRange::Fill(_)) && !resident(l, q) {
+                w.wanted.push((l, q));
+            }
         }
     }
 }

@@ -66,6 +66,7 @@ fn level0(budget: u64) -> OutOfCoreParams {
         level: Some(0),
         lod_scale: 1.0,
         prefetch: true,
+        resident_only: false,
     }
 }
 
@@ -436,4 +437,105 @@ fn the_levels_follow_the_distance() {
     // An asked level is the only one read.
     let (_, one) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
     assert_eq!((one.level, one.coarsest), (0, 0), "{one:?}");
+}
+
+#[test]
+fn resident_only_frames_never_read_and_refine_to_the_full_picture() {
+    // A viewer's frames: the first reads the coarsest level's chunks and
+    // draws everything at that level; each later frame reads nothing and
+    // draws each region at the finest level in memory, listing what it
+    // lacks. Read what is wanted, frame after frame: the picture becomes
+    // the one a render that reads as it goes draws.
+    let vol = field([96, 80, 64], |x, y, z| {
+        0.5 + 0.25 * (x * 0.31).sin() * (y * 0.23).cos() + 0.2 * (z / 64.0)
+    });
+    let tf = TransferFunction::preset("viridis").unwrap();
+    let src = MemorySource::new(vol, 2, [16; 3]).unwrap();
+    let window = tf.window_for(src.volume(0), None);
+    let (cam, p) = close_view();
+    let no = AtomicBool::new(false);
+    let streaming = OutOfCoreParams {
+        resident_only: true,
+        ..per_region(64 << 20)
+    };
+    let full = |ooc: &OutOfCoreParams| {
+        render_chunked(&src, &tf, window, &cam, &p, ooc, &|_, _| {}, &no).unwrap()
+    };
+    let (want, _, want_st) = full(&per_region(64 << 20));
+    let (coarse, _, _) = full(&OutOfCoreParams {
+        level: Some(2),
+        ..per_region(64 << 20)
+    });
+    assert_eq!((want_st.level, want_st.coarsest), (0, 1), "{want_st:?}");
+
+    let ooc = OutOfCore::new(&src, streaming);
+    let mut bases = Vec::new();
+    let mut last = None;
+    for frame in 0..10 {
+        let (img, _, st) = ooc
+            .render(&tf, window, &cam, &p, &|_, _| {}, &no)
+            .unwrap();
+        if frame == 0 {
+            assert_eq!(st.level, 2, "{st:?}");
+            assert!(worst_diff(&img, &coarse) < 1e-6, "the coarsest level");
+            assert!(!st.wanted.is_empty());
+        } else {
+            assert_eq!(st.cache.misses, 0, "frame {frame} read: {st:?}");
+        }
+        bases.push(st.level);
+        let done = st.wanted.is_empty();
+        for &k in &st.wanted {
+            assert!(ooc.fetch(k).unwrap(), "{k:?} was wanted but in memory");
+        }
+        last = Some(img);
+        if done {
+            break;
+        }
+    }
+    assert_eq!(bases.first(), Some(&2), "{bases:?}");
+    assert_eq!(bases.last(), Some(&0), "{bases:?}");
+    assert!(bases.windows(2).all(|w| w[0] >= w[1]), "{bases:?}");
+    let worst = worst_diff(&last.unwrap(), &want);
+    assert!(worst < 1e-5, "refined picture differs by {worst}");
+}
+
+#[test]
+fn resident_only_wants_no_more_than_the_budget_holds() {
+    // A budget of a few chunks: the frames refine as far as memory allows
+    // and then stop asking (no chunk read only to evict another the view
+    // uses), still reading nothing while they draw.
+    let vol = field([96, 80, 64], |x, y, _| 0.3 + 0.4 * ((x + y) / 176.0));
+    let tf = TransferFunction::preset("grayscale").unwrap();
+    let src = MemorySource::new(vol, 2, [16; 3]).unwrap();
+    let window = tf.window_for(src.volume(0), None);
+    let (cam, p) = close_view();
+    let no = AtomicBool::new(false);
+    let chunk = 16 * 16 * 16 * 4;
+    let budget = 40 * chunk;
+    let ooc = OutOfCore::new(
+        &src,
+        OutOfCoreParams {
+            resident_only: true,
+            ..per_region(budget)
+        },
+    );
+    let mut finished = false;
+    for frame in 0..12 {
+        let (_, _, st) = ooc
+            .render(&tf, window, &cam, &p, &|_, _| {}, &no)
+            .unwrap();
+        if frame > 0 {
+            assert_eq!(st.cache.misses, 0, "frame {frame} read: {st:?}");
+        }
+        assert!(st.cache.peak_bytes <= budget, "{st:?}");
+        if st.wanted.is_empty() {
+            finished = true;
+            assert!(st.level > 0, "level 0 cannot fit: {st:?}");
+            break;
+        }
+        for &k in &st.wanted {
+            ooc.fetch(k).unwrap();
+        }
+    }
+    assert!(finished, "still wanting chunks after 12 frames");
 }
