@@ -73,10 +73,14 @@ fn view(args: &[&str], dir: &Path) -> Output {
 
 /// The screenshot against `voxcast render --scene` of the saved scene.
 fn check_matches_render(dir: &Path) -> f64 {
-    let o = voxcast(
-        &["render", "--scene", "s.toml", "-o", "render.png", "-q"],
-        dir,
-    );
+    check_matches_render_with(dir, &[])
+}
+
+/// As [`check_matches_render`], with more flags for `voxcast render`.
+fn check_matches_render_with(dir: &Path, more: &[&str]) -> f64 {
+    let mut args = vec!["render", "--scene", "s.toml", "-o", "render.png", "-q"];
+    args.extend_from_slice(more);
+    let o = voxcast(&args, dir);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let shot = voxcast::Image::read(&dir.join("out.png")).unwrap();
     let render = voxcast::Image::read(&dir.join("render.png")).unwrap();
@@ -277,6 +281,67 @@ fn a_store_opens_at_the_coarsest_level_and_refines_to_level_0() {
     let scene = voxcast::scene::Scene::load(&dir.path().join("s.toml")).unwrap();
     assert_eq!(scene.input.options.level, Some(1));
     assert_matches_render(dir.path(), "store level 1 view vs render");
+}
+
+/// A store whose level 0 does not fit the memory budget is drawn out of
+/// core on the CPU: the first image shows the coarsest level, each later
+/// one finer regions as their chunks are read, and the scripted run waits
+/// until nothing more is wanted; the picture is then `voxcast render`'s out
+/// of core within the same budget.
+#[test]
+fn a_store_too_large_for_memory_is_drawn_out_of_core_and_refines_by_region() {
+    if !have_xvfb() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let store = dir.path().join("demo.zarr");
+    let store = store.to_str().unwrap();
+    let o = voxcast(
+        &["convert", "builtin:demo", "-o", store, "--chunk", "16"],
+        dir.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Level 0 is 2 MiB: twice it does not fit in 3 MiB, its chunks do.
+    let args = [
+        store,
+        "--size",
+        "240x180",
+        "--azimuth",
+        "30",
+        "--device",
+        "cpu",
+        "--memory-budget",
+        "3MiB",
+        "--screenshot",
+        "out.png",
+        "--exit-after-frames",
+        "5",
+        "--save-scene",
+        "s.toml",
+        "--stats-json",
+        "st.json",
+    ];
+    let o = view(&args, dir.path());
+    assert_ran(&o);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("out of core"), "{e}");
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
+            .unwrap();
+    let levels: Vec<u64> = stats["levels"]
+        .as_array()
+        .expect("levels")
+        .iter()
+        .map(|l| l.as_u64().unwrap())
+        .collect();
+    // The finest level of each new image: 3 (16³, all of it) first, then
+    // finer, down to level 0 near the eye.
+    assert_eq!(levels.first(), Some(&3), "{stats}");
+    assert_eq!(levels.last(), Some(&0), "{stats}");
+    assert!(levels.windows(2).all(|w| w[0] > w[1]), "{levels:?}");
+    let psnr = check_matches_render_with(dir.path(), &["--out-of-core", "--memory-budget", "3MiB"]);
+    eprintln!("streamed store view vs render: PSNR {psnr:.2} dB");
+    assert!(psnr >= 40.0, "PSNR {psnr:.2} dB < 40 dB");
 }
 
 #[test]

@@ -5,12 +5,15 @@
 //! state, the worker's replies and the render schedule; `panels` draws the
 //! view, the stats bar and the control panel; `script` runs `--orbit`,
 //! `--screenshot` and `--script-stats`. A store shown coarse first swaps in
-//! each finer level as the loader hands it over ([`crate::levels`]).
+//! each finer level as the loader hands it over ([`crate::levels`]); one too
+//! large for memory is drawn out of core and drawn again as chunks arrive
+//! ([`crate::stream`]).
 
 use crate::camera_ctl::OrbitController;
 use crate::image_paint::{self, PaintImage};
 use crate::levels::{LevelSlots, Loaded, Pyramid};
 use crate::progressive::{frame_params, Quality, Scheduler};
+use crate::stream::StoreFrame;
 use crate::tf_model::{LogHistogram, TfModel};
 use crate::tf_widget::TfWidgetState;
 use crate::worker::{Reply, Request, Source, Worker};
@@ -80,6 +83,23 @@ struct LevelState {
     ctx: egui::Context,
 }
 
+/// A store too large for memory, drawn out of core.
+struct StoreState {
+    coarsest: usize,
+    /// What the last full-quality frame of the current view showed.
+    shown: Option<StoreFrame>,
+    /// Chunks arrived since the last frame was asked for: the view is to
+    /// be drawn again once the full frame in progress is on screen.
+    arrived: bool,
+}
+
+impl StoreState {
+    /// True while the view is to be drawn again with chunks read since.
+    fn refining(&self) -> bool {
+        self.arrived || self.shown.is_none_or(|f| f.wanted > 0)
+    }
+}
+
 impl LevelState {
     /// True while a finer level is still to come.
     fn refining(&self) -> bool {
@@ -118,6 +138,8 @@ struct Shown {
     generation: u64,
     quality: Quality,
     frame: usize,
+    /// A store drawn out of core: what it showed.
+    store: Option<StoreFrame>,
     /// UI frame in which it was first painted.
     painted_at: u64,
 }
@@ -129,6 +151,8 @@ struct Script {
     orbit_start: Option<Instant>,
     orbit_end: Option<Instant>,
     requested: bool,
+    /// When the window was set up.
+    started: Instant,
     stats: ScriptStats,
 }
 
@@ -146,6 +170,7 @@ pub struct ViewerApp {
     params: RenderParams,
     time: Option<TimeState>,
     levels: Option<LevelState>,
+    store: Option<StoreState>,
     worker: Worker,
     scheduler: Scheduler,
     /// The view state's version: bumped by every change.
@@ -203,6 +228,15 @@ impl ViewerApp {
             (lo, hi) = (lo.min(glo), hi.max(ghi));
         }
         let cam = OrbitController::new(&scene.camera, (lo, hi));
+        let (pyramid, streamed) = match pyramid {
+            Some(p) if p.out_of_core => (None, Some(p)),
+            p => (p, None),
+        };
+        let store = streamed.as_ref().map(|p| StoreState {
+            coarsest: p.coarsest,
+            shown: None,
+            arrived: false,
+        });
         let levels = pyramid.map(|p| LevelState {
             coarsest: p.coarsest,
             finest: p.finest,
@@ -213,13 +247,17 @@ impl ViewerApp {
             failed: None,
             ctx: ctx.clone(),
         });
-        let (source, frame) = match (&series, &levels) {
-            (Some((s, f)), _) => (
+        let (source, frame) = match (&series, &levels, streamed) {
+            (Some((s, f)), _, _) => (
                 Source::Series(Box::new(s.clone()), scene.input.options.clone()),
                 *f,
             ),
-            (None, Some(l)) => (Source::Levels(l.slots.clone()), l.level),
-            (None, None) => (Source::Single, 0),
+            (None, Some(l), _) => (Source::Levels(l.slots.clone()), l.level),
+            (None, None, Some(p)) => {
+                let budget = p.budget;
+                (Source::Store(Arc::new(p.into_store()), budget), 0)
+            }
+            (None, None, None) => (Source::Single, 0),
         };
         let worker = Worker::spawn(
             options.device.clone(),
@@ -248,6 +286,7 @@ impl ViewerApp {
             orbit_start: None,
             orbit_end: None,
             requested: false,
+            started: Instant::now(),
             stats: ScriptStats::default(),
         });
         let preset = if scene.transfer.map.is_some() {
@@ -267,6 +306,7 @@ impl ViewerApp {
             cam,
             time,
             levels,
+            store,
             worker,
             scheduler: Scheduler::default(),
             version: 1,
@@ -353,7 +393,13 @@ impl ViewerApp {
                     image,
                     srgba,
                     stats,
+                    store,
                 } => {
+                    if let (Some(st), Some(f), Quality::Full) = (&mut self.store, store, quality) {
+                        if generation == self.version {
+                            st.shown = Some(f);
+                        }
+                    }
                     if let Quality::Preview { .. } = quality {
                         self.scheduler.record(stats.rays, stats.seconds);
                     }
@@ -403,10 +449,16 @@ impl ViewerApp {
                         generation,
                         quality,
                         frame,
+                        store,
                         painted_at: u64::MAX,
                     });
                     self.last_stats = Some((stats, quality));
                     self.message.clear();
+                }
+                Reply::Arrived { .. } => {
+                    if let Some(st) = &mut self.store {
+                        st.arrived = true;
+                    }
                 }
                 Reply::Cancelled { .. } => {
                     if let Some(s) = &mut self.script {
@@ -492,10 +544,21 @@ impl ViewerApp {
         }
         let since = self.last_change.elapsed();
         let moving = since < self.scheduler.settle;
-        let full_shown = self
+        let mut full_shown = self
             .shown
             .as_ref()
             .is_some_and(|s| s.generation == self.version && s.quality == Quality::Full);
+        // A store drawn out of core: chunks arrived since the full frame on
+        // screen was asked for. Not a move: that frame stays until the
+        // next one, drawn with them, replaces it.
+        if let Some(st) = &mut self.store {
+            if st.arrived && full_shown && !moving {
+                st.arrived = false;
+                st.shown = None;
+                self.version += 1;
+                full_shown = false;
+            }
+        }
         let quality = if moving {
             if self.requested.is_some_and(|r| r.0 == self.version) {
                 None
@@ -561,9 +624,13 @@ impl ViewerApp {
         let version = self.version;
         let shown_level = match (&self.levels, &self.shown) {
             (Some(_), Some(sh)) => Some(sh.frame),
+            (None, Some(sh)) => sh.store.map(|f| f.finest),
             _ => None,
         };
         let Some(s) = &mut self.script else { return };
+        let since = now.duration_since(s.started).as_secs_f64() * 1e3;
+        s.stats.first_image_ms.get_or_insert(since);
+        s.stats.last_image_ms = since;
         if let Some(l) = shown_level {
             if s.stats.levels.last() != Some(&l) {
                 s.stats.levels.push(l);

@@ -38,6 +38,11 @@ pub trait FrameRenderer {
         params: &RenderParams,
         cancel: &AtomicBool,
     ) -> voxcast::Result<(Image, RenderStats)>;
+
+    /// What the last frame showed of a store drawn out of core.
+    fn store_frame(&self) -> Option<crate::stream::StoreFrame> {
+        None
+    }
 }
 
 /// Makes the frame renderer of `device` (chosen by `voxcast_gpu::choose`)

@@ -27,6 +27,11 @@ pub struct Pyramid {
     /// budget twice over (the in-core renderer holds about two copies); 0
     /// unless memory is short.
     pub finest: usize,
+    /// The memory budget it was opened with (bytes).
+    pub budget: u64,
+    /// Draw it out of core instead ([`crate::stream`]): set where level 0
+    /// does not fit and the CPU draws the frames.
+    pub out_of_core: bool,
 }
 
 impl std::fmt::Debug for Pyramid {
@@ -64,7 +69,14 @@ impl Pyramid {
             spacing: opts.spacing,
             coarsest,
             finest,
+            budget,
+            out_of_core: false,
         }))
+    }
+
+    /// The store, to be drawn out of core.
+    pub fn into_store(self) -> ZarrStore {
+        self.store
     }
 
     /// Decoded bytes of `level`.

@@ -19,6 +19,7 @@ mod image_paint;
 pub mod levels;
 pub mod progressive;
 pub mod screenshot;
+pub mod stream;
 pub mod tf_model;
 mod tf_widget;
 pub mod worker;
@@ -60,6 +61,9 @@ pub struct ViewOptions {
     pub save_scene: Option<PathBuf>,
     /// Scripted measurement: orbit the camera for this many seconds first.
     pub orbit: Option<f32>,
+    /// For a store: the most decoded voxels held at once (default: half
+    /// the memory available).
+    pub memory_budget: Option<u64>,
 }
 
 /// What a scripted run measured.
@@ -93,8 +97,13 @@ pub struct ScriptStats {
     pub present_mode: String,
     /// A store shown coarse first: the level of each new image painted,
     /// repeats left out (the coarsest first, the finest read last); empty
-    /// for other inputs.
+    /// for other inputs. A store drawn out of core: the finest level of
+    /// each new image painted.
     pub levels: Vec<usize>,
+    /// From the window's set-up to the first image painted, and to the
+    /// last (ms).
+    pub first_image_ms: Option<f64>,
+    pub last_image_ms: f64,
 }
 
 impl ScriptStats {
@@ -121,7 +130,7 @@ impl ScriptStats {
 /// shows it in a window until the window is closed (or, scripted, until the
 /// screenshot is written). Returns what a scripted run measured.
 pub fn run(scene: Scene, options: ViewOptions) -> Result<ScriptStats, ViewError> {
-    let (series, pyramid, volume) = open_input(&scene)?;
+    let (series, pyramid, volume) = open_input(&scene, &options)?;
     let prepared = scene.prepare_with(volume)?;
     let (w, h) = (scene.render.width, scene.render.height);
     let outcome = Arc::new(Mutex::new(None));
@@ -208,21 +217,33 @@ fn present_mode() -> Result<eframe::wgpu::PresentMode, ViewError> {
 /// coarsest level, to be refined; or a single volume.
 type Input = (Option<(Series, usize)>, Option<Pyramid>, voxcast::Volume);
 
-fn open_input(scene: &Scene) -> Result<Input, ViewError> {
+fn open_input(scene: &Scene, options: &ViewOptions) -> Result<Input, ViewError> {
     let path = &scene.input.path;
     if !path.starts_with(BUILTIN_PREFIX) {
         let opts = &scene.input.options;
-        let budget = voxcast::render::outofcore::default_budget();
-        if let Some(p) = Pyramid::open(std::path::Path::new(path), opts, budget)? {
+        let budget = options
+            .memory_budget
+            .unwrap_or_else(voxcast::render::outofcore::default_budget);
+        if let Some(mut p) = Pyramid::open(std::path::Path::new(path), opts, budget)? {
             let v = p.read(p.coarsest)?;
             if p.finest > 0 {
                 use voxcast::render::outofcore::human_bytes;
+                // The CPU draws the store out of core, chunk by chunk; the
+                // GPU needs a level whole.
+                p.out_of_core = matches!(options.device, Device::Cpu);
+                let how = if p.out_of_core {
+                    "it draws the store out of core, reading the chunks the view needs, each region at the level it needs".to_string()
+                } else {
+                    format!(
+                        "the GPU refines down to level {} ({}); `--device cpu` draws level 0 out of core",
+                        p.finest,
+                        human_bytes(p.bytes(p.finest))
+                    )
+                };
                 eprintln!(
-                    "note: {path}: level 0 is {} decoded, and the viewer holds about two copies within half the memory available ({}): it refines down to level {} ({}); `voxcast render` renders level 0 out of core",
+                    "note: {path}: level 0 is {} decoded, and the viewer would hold about two copies within the memory budget ({}): {how}",
                     human_bytes(p.bytes(0)),
                     human_bytes(budget),
-                    p.finest,
-                    human_bytes(p.bytes(p.finest)),
                 );
             }
             return Ok((None, Some(p), v));

@@ -14,6 +14,7 @@
 use crate::backend::{self, FrameRenderer};
 use crate::levels::LevelSlots;
 use crate::progressive::Quality;
+use crate::stream::{StoreFrame, StoreFrames, Wants};
 use crate::tf_model::LogHistogram;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender};
@@ -21,6 +22,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::time::Instant;
 use voxcast::camera::CameraParams;
 use voxcast::geometry::Geometry;
+use voxcast::io::zarr::ZarrStore;
 use voxcast::io::OpenOptions;
 use voxcast::io::Series;
 use voxcast::render::RenderParams;
@@ -68,7 +70,13 @@ pub enum Reply {
         /// `image` as 8-bit sRGB RGBA (converted here, off the UI thread).
         srgba: Vec<u8>,
         stats: RenderStats,
+        /// A store drawn out of core: the levels shown, the chunks wanted.
+        store: Option<StoreFrame>,
     },
+    /// A store drawn out of core: chunks a finer picture needs have been
+    /// read since the last such reply; the same view drawn again shows
+    /// more.
+    Arrived { chunks: usize },
     /// A full-quality frame was abandoned for a newer request.
     Cancelled {
         generation: u64,
@@ -89,6 +97,9 @@ pub enum Source {
     /// level, taken from here once the level loader has read it
     /// ([`crate::levels`]).
     Levels(Arc<LevelSlots>),
+    /// A store too large for memory, drawn out of core within a budget
+    /// (bytes), refined as a loader reads chunks ([`crate::stream`]).
+    Store(Arc<ZarrStore>, u64),
 }
 
 /// The one-place mailbox.
@@ -183,7 +194,7 @@ impl Worker {
         frame: usize,
         volume: Arc<Volume>,
         geometry: Option<Arc<Geometry>>,
-        notify: impl Fn() + Send + 'static,
+        notify: impl Fn() + Send + Sync + 'static,
     ) -> Worker {
         let mailbox = Arc::new(Mailbox::default());
         let (tx, replies) = std::sync::mpsc::channel();
@@ -214,7 +225,7 @@ impl Worker {
                     window: None,
                     geometry,
                     tx,
-                    notify: Box::new(notify),
+                    notify: Arc::new(notify),
                 };
                 match pool {
                     Ok(pool) => pool.install(|| t.run(&mb)),
@@ -256,7 +267,54 @@ struct Thread {
     window: Option<[f32; 2]>,
     geometry: Option<Arc<Geometry>>,
     tx: Sender<Reply>,
-    notify: Box<dyn Fn() + Send>,
+    notify: Arc<dyn Fn() + Send + Sync>,
+}
+
+/// Makes the frame renderer for a volume and data window.
+trait Backends {
+    fn create<'v>(
+        &'v self,
+        volume: &'v Volume,
+        window: [f32; 2],
+    ) -> voxcast::Result<Box<dyn FrameRenderer + 'v>>;
+}
+
+/// The device's renderer of the volume in memory.
+struct OnDevice {
+    device: Device,
+    geometry: Option<Arc<Geometry>>,
+}
+
+impl Backends for OnDevice {
+    fn create<'v>(
+        &'v self,
+        volume: &'v Volume,
+        window: [f32; 2],
+    ) -> voxcast::Result<Box<dyn FrameRenderer + 'v>> {
+        backend::create(self.device.clone(), volume, window, self.geometry.clone())
+    }
+}
+
+/// Out-of-core frames of a store (the volume in memory, its coarsest
+/// level, serves the histogram only).
+struct OfStore<'a> {
+    ooc: &'a voxcast::render::outofcore::OutOfCore<'a>,
+    wants: &'a Wants,
+}
+
+impl Backends for OfStore<'_> {
+    fn create<'v>(
+        &'v self,
+        _volume: &'v Volume,
+        window: [f32; 2],
+    ) -> voxcast::Result<Box<dyn FrameRenderer + 'v>> {
+        Ok(Box::new(StoreFrames {
+            ooc: self.ooc,
+            window,
+            wants: self.wants,
+            last: None,
+        }))
+    }
 }
 
 impl Thread {
@@ -266,6 +324,39 @@ impl Thread {
     }
 
     fn run(&mut self, mailbox: &Mailbox) {
+        let Source::Store(store, budget) = &self.source else {
+            let on = OnDevice {
+                device: self.device.clone(),
+                geometry: self.geometry.clone(),
+            };
+            return self.serve(mailbox, &on);
+        };
+        let (store, budget) = (store.clone(), *budget);
+        let ooc = crate::stream::renderer(&store, budget);
+        let wants = Wants::default();
+        let (tx, notify) = (self.tx.clone(), self.notify.clone());
+        std::thread::scope(|s| {
+            let loader = std::thread::Builder::new()
+                .name("voxcast-view chunks".into())
+                .spawn_scoped(s, || crate::stream::load(&ooc, &wants, &tx, &*notify));
+            if let Err(e) = loader {
+                self.send(Reply::Error {
+                    generation: 0,
+                    message: format!("cannot start the chunk loader: {e}"),
+                });
+            }
+            self.serve(
+                mailbox,
+                &OfStore {
+                    ooc: &ooc,
+                    wants: &wants,
+                },
+            );
+            wants.stop();
+        });
+    }
+
+    fn serve(&mut self, mailbox: &Mailbox, backends: &dyn Backends) {
         // One pass of the outer loop per (volume, window): the renderer
         // borrows the volume, and its derived structures are built once.
         'volume: loop {
@@ -279,12 +370,7 @@ impl Thread {
             }
             let volume = self.volume.clone();
             let window = req.window;
-            let mut renderer: Box<dyn FrameRenderer + '_> = match backend::create(
-                self.device.clone(),
-                &volume,
-                window,
-                self.geometry.clone(),
-            ) {
+            let mut renderer: Box<dyn FrameRenderer + '_> = match backends.create(&volume, window) {
                 Ok(r) => r,
                 Err(e) => {
                     self.window = None;
@@ -321,6 +407,7 @@ impl Thread {
                         srgba: srgba8(&image),
                         image,
                         stats,
+                        store: renderer.store_frame(),
                     }),
                     Err(voxcast::Error::Cancelled) => self.send(Reply::Cancelled {
                         generation: req.generation,
@@ -348,7 +435,7 @@ impl Thread {
                     Arc::new(series.load(req.frame, options).map_err(|e| e.to_string())?)
                 }
                 Source::Levels(levels) => levels.take(req.frame)?,
-                Source::Single => {
+                Source::Single | Source::Store(..) => {
                     return Err(format!("frame {}: the input is a single volume", req.frame))
                 }
             };
@@ -545,5 +632,55 @@ mod tests {
             ),
             "{r:?}"
         );
+    }
+
+    #[test]
+    fn a_store_is_drawn_from_memory_and_drawn_finer_as_chunks_arrive() {
+        // The render thread draws what is in memory (the coarsest level at
+        // first) and hands the chunks it lacks to the loader, which says
+        // when they have arrived; the same request then draws finer.
+        let dir = tempfile::tempdir().unwrap();
+        let v = voxcast::builtin::open("sphere").unwrap();
+        let p = dir.path().join("sphere.zarr");
+        let opts = voxcast::io::zarr::write::WriteOptions {
+            chunk: [16; 3],
+            ..Default::default()
+        };
+        voxcast::io::zarr::write::write_volume(&v, &p, &opts, &|_, _| {}).unwrap();
+        let store = Arc::new(ZarrStore::open(&p).unwrap());
+        let coarsest = Arc::new(store.read_level(2).unwrap());
+        let source = Source::Store(store, 64 << 20);
+        let w = Worker::spawn(Device::Cpu, source, 0, coarsest, None, || {});
+        let mut finest = Vec::new();
+        for generation in 1..20 {
+            // Pixels finer than level 0's voxels.
+            let mut req = request(generation);
+            (req.params.width, req.params.height) = (160, 160);
+            w.submit(req);
+            let frame = loop {
+                match w.replies.recv_timeout(Duration::from_secs(60)).unwrap() {
+                    Reply::Frame { store, .. } => break store.expect("a store frame"),
+                    Reply::Error { message, .. } => panic!("{message}"),
+                    _ => {}
+                }
+            };
+            finest.push(frame.finest);
+            if frame.wanted == 0 {
+                break;
+            }
+            // Wait for the loader.
+            loop {
+                match w.replies.recv_timeout(Duration::from_secs(60)).unwrap() {
+                    Reply::Arrived { chunks } => {
+                        assert!(chunks > 0);
+                        break;
+                    }
+                    Reply::Error { message, .. } => panic!("{message}"),
+                    _ => {}
+                }
+            }
+        }
+        assert_eq!(finest.first(), Some(&2), "{finest:?}");
+        assert_eq!(finest.last(), Some(&0), "{finest:?}");
     }
 }

@@ -23,10 +23,12 @@ simulate`/`voxcast cloud`, FDS .smv, folders or globs of volume files) get a
 time slider and play.
 
 An OME-Zarr store opens at once at its coarsest level; finer levels are read
-in the background, down to the finest that fits in memory (level 0 unless it
-is too large), and each replaces the one shown as it arrives (the stats bar
-says which level is shown). The view keeps turning meanwhile. --level N shows
-level N only.
+in the background and each replaces the one shown as it arrives (the stats bar
+says which level is shown). A store whose level 0 is too large for memory
+(--memory-budget) is drawn out of core on the CPU: each region at the level
+its distance needs, refined as the chunks the view needs are read, nearest
+and coarsest first. The view keeps turning meanwhile; no frame waits for a
+read. --level N shows level N only.
 
 `Save scene` writes a scene file that `voxcast render --scene FILE` renders to
 the same image as the view (same camera, transfer function, method and
@@ -82,6 +84,16 @@ pub struct ViewArgs {
     /// says which methods the GPU has).
     #[arg(long, value_enum, default_value = "auto", help_heading = "Device", long_help = device_help("Which renderer draws the frames (on the GPU, the methods it lacks and triangle meshes are drawn by the CPU, frame by frame). "))]
     pub device: DeviceArg,
+    /// For an OME-Zarr store: the most decoded voxels held at once (e.g.
+    /// 512MiB, 2GiB; default half the memory available). A store whose
+    /// level 0 does not fit twice over is drawn out of core on the CPU,
+    /// each region at the level it needs, refined as its chunks are read.
+    #[arg(long, value_name = "BYTES", value_parser = parse_budget, help_heading = "Large volumes")]
+    pub memory_budget: Option<u64>,
+}
+
+fn parse_budget(s: &str) -> std::result::Result<u64, String> {
+    voxcast::render::outofcore::parse_bytes(s)
 }
 
 impl ViewArgs {

@@ -29,6 +29,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         exit_after_frames: a.exit_after_frames,
         save_scene: a.save_scene.clone(),
         orbit: a.orbit,
+        memory_budget: a.memory_budget,
     };
     let stats = voxcast_view::run(scene, options)?;
     if let Some(f) = &a.screenshot {
@@ -65,7 +66,12 @@ pub fn run(a: ViewArgs) -> Result<()> {
     }
     if !stats.levels.is_empty() {
         let shown: Vec<String> = stats.levels.iter().map(|l| l.to_string()).collect();
-        eprintln!("levels shown: {}", shown.join(" → "));
+        eprintln!(
+            "levels shown: {} (the first image {:.0} ms after the window opened, the last {:.0} ms)",
+            shown.join(" → "),
+            stats.first_image_ms.unwrap_or(f64::NAN),
+            stats.last_image_ms
+        );
     }
     if let Some(f) = &a.stats_json {
         let json = serde_json::to_string_pretty(&stats)?;

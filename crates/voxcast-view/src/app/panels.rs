@@ -139,6 +139,24 @@ impl ViewerApp {
                     text += " (the finest that fits in memory)";
                 }
             }
+            if let Some(st) = &self.store {
+                let f = self.shown.as_ref().and_then(|s| s.store);
+                match f {
+                    Some(f) if f.finest == f.coarsest => {
+                        text += &format!(" · level {} of 0…{}", f.finest, st.coarsest)
+                    }
+                    Some(f) => {
+                        text +=
+                            &format!(" · levels {}…{} of 0…{}", f.finest, f.coarsest, st.coarsest)
+                    }
+                    None => text += &format!(" · levels of 0…{}", st.coarsest),
+                }
+                match f {
+                    Some(f) if f.wanted > 0 => text += &format!(", reading {} chunks…", f.wanted),
+                    Some(f) if f.over_budget => text += " (all the memory budget holds)",
+                    _ => {}
+                }
+            }
             ui.monospace(text);
             if !self.message.is_empty() {
                 ui.colored_label(Color32::from_rgb(255, 200, 120), &self.message);

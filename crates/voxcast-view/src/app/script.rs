@@ -48,7 +48,8 @@ impl ViewerApp {
             sh.generation == self.version
                 && sh.quality == Quality::Full
                 && sh.painted_at < self.ui_frame
-        }) && !self.levels.as_ref().is_some_and(|l| l.refining());
+        }) && !self.levels.as_ref().is_some_and(|l| l.refining())
+            && !self.store.as_ref().is_some_and(|st| st.refining());
         if !(orbit_done && refined && self.ui_frame >= s.exit_after) {
             return;
         }

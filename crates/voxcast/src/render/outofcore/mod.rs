@@ -127,6 +127,10 @@ pub struct OutOfCoreStats {
     /// beside those the frame used.
     #[serde(skip)]
     pub wanted: Vec<ChunkKey>,
+    /// Some chunks a finer picture needs were left out of `wanted`: the
+    /// budget cannot hold them beside those the frame reads.
+    #[serde(skip)]
+    pub over_budget: bool,
 }
 
 /// A chunk of a store: its level and index (x, y, z).
@@ -439,6 +443,7 @@ impl<'s> OutOfCore<'s> {
             .collect();
         // Wanted: as many as fit beside the chunks this frame reads.
         let mut wanted = std::mem::take(&mut plan.wanted);
+        let asked = wanted.len();
         if !wanted.is_empty() {
             let mut used: std::collections::HashSet<ChunkKey> =
                 held.borrow().keys().copied().collect();
@@ -455,6 +460,7 @@ impl<'s> OutOfCore<'s> {
             });
         }
         let mut stats = OutOfCoreStats {
+            over_budget: wanted.len() < asked,
             wanted,
             level: base,
             coarsest: base,

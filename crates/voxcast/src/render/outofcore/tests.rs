@@ -472,9 +472,7 @@ fn resident_only_frames_never_read_and_refine_to_the_full_picture() {
     let mut bases = Vec::new();
     let mut last = None;
     for frame in 0..10 {
-        let (img, _, st) = ooc
-            .render(&tf, window, &cam, &p, &|_, _| {}, &no)
-            .unwrap();
+        let (img, _, st) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
         if frame == 0 {
             assert_eq!(st.level, 2, "{st:?}");
             assert!(worst_diff(&img, &coarse) < 1e-6, "the coarsest level");
@@ -521,9 +519,7 @@ fn resident_only_wants_no_more_than_the_budget_holds() {
     );
     let mut finished = false;
     for frame in 0..12 {
-        let (_, _, st) = ooc
-            .render(&tf, window, &cam, &p, &|_, _| {}, &no)
-            .unwrap();
+        let (_, _, st) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
         if frame > 0 {
             assert_eq!(st.cache.misses, 0, "frame {frame} read: {st:?}");
         }
@@ -531,6 +527,7 @@ fn resident_only_wants_no_more_than_the_budget_holds() {
         if st.wanted.is_empty() {
             finished = true;
             assert!(st.level > 0, "level 0 cannot fit: {st:?}");
+            assert!(st.over_budget, "{st:?}");
             break;
         }
         for &k in &st.wanted {
