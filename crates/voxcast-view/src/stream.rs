@@ -1,6 +1,6 @@
 //! A store too large for memory, drawn out of core: each frame is an
 //! out-of-core render that reads nothing
-//! ([`OutOfCoreParams::resident_only`]) — every region is drawn at the finest
+//! ([`OutOfCoreParams::resident_only`](voxcast::render::outofcore::OutOfCoreParams::resident_only)) — every region is drawn at the finest
 //! level whose chunks are in memory — and lists the chunks a finer picture
 //! needs. A loader thread (neither the UI nor the render thread) reads
 //! them, newest frame's list first, and says when some have arrived; the
