@@ -432,4 +432,30 @@ fn out_of_core_reads_far_regions_at_a_coarser_level() {
     let coarse = psnr("l0.png", "l1.png", d).unwrap();
     // Measured: 45.9 dB against 29.3.
     assert!(mixed >= 40.0 && mixed > coarse + 5.0, "{mixed} {coarse}");
+    // --lod-scale 2: the front a level coarser (level 1), and the saved
+    // scene keeps it; 0 is refused.
+    render(
+        "coarser.png",
+        &[
+            "--lod-scale",
+            "2",
+            "--save-scene",
+            "c.toml",
+            "--stats-json",
+            "c.json",
+        ],
+    );
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("c.json")).unwrap()).unwrap();
+    assert_eq!(j["out_of_core"]["level"], 1, "{j}");
+    let scene = voxcast::scene::Scene::load(&d.join("c.toml")).unwrap();
+    assert_eq!(scene.input.options.lod_scale, Some(2.0));
+    let o = voxcast(&["render", "--scene", "c.toml", "-o", "again.png", "-q"], d);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // (In core this time: level 1 fits; 92.5 dB, 8-bit roundings.)
+    let db = psnr("coarser.png", "again.png", d).unwrap_or(f64::INFINITY);
+    assert!(db >= 60.0, "the scene renders level 1 again: {db} dB");
+    let o = voxcast(&["render", "d.zarr", "--lod-scale", "0", "-o", "x.png"], d);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && e.contains("--lod-scale 0"), "{e}");
 }

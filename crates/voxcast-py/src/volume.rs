@@ -142,6 +142,7 @@ pub fn open(
         variable,
         time,
         level,
+        lod_scale: None,
     };
     let is_builtin = scene.input.path.starts_with(voxcast::scene::BUILTIN_PREFIX);
     let glob = scene.input.path.contains(['*', '?', '[']);

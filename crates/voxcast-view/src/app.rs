@@ -254,8 +254,8 @@ impl ViewerApp {
             ),
             (None, Some(l), _) => (Source::Levels(l.slots.clone()), l.level),
             (None, None, Some(p)) => {
-                let budget = p.budget;
-                (Source::Store(Arc::new(p.into_store()), budget), 0)
+                let ooc = crate::stream::params(p.budget, p.lod_scale);
+                (Source::Store(Arc::new(p.into_store()), ooc), 0)
             }
             (None, None, None) => (Source::Single, 0),
         };

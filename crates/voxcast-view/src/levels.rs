@@ -29,6 +29,8 @@ pub struct Pyramid {
     pub finest: usize,
     /// The memory budget it was opened with (bytes).
     pub budget: u64,
+    /// `--lod-scale` (checked: positive), for out-of-core frames.
+    pub lod_scale: f32,
     /// Draw it out of core instead ([`crate::stream`]): set where level 0
     /// does not fit and the CPU draws the frames.
     pub out_of_core: bool,
@@ -56,6 +58,15 @@ impl Pyramid {
         if opts.level.is_some() || !matches!(voxcast::io::detect(path, opts), Ok(Format::Zarr)) {
             return Ok(None);
         }
+        let lod_scale = match opts.lod_scale {
+            None => 1.0,
+            Some(x) if x.is_finite() && x > 0.0 => x,
+            Some(x) => {
+                return Err(voxcast::Error::invalid(format!(
+                    "lod_scale {x}: expected a positive number"
+                )))
+            }
+        };
         let store = ZarrStore::open_with(path, opts)?;
         let coarsest = store.levels().len().saturating_sub(1);
         let Some(finest) = store.finest_within(budget / 2) else {
@@ -70,6 +81,7 @@ impl Pyramid {
             coarsest,
             finest,
             budget,
+            lod_scale,
             out_of_core: false,
         }))
     }

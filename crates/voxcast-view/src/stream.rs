@@ -16,7 +16,7 @@ use std::sync::mpsc::Sender;
 use std::sync::{Condvar, Mutex};
 use std::time::{Duration, Instant};
 use voxcast::camera::CameraParams;
-use voxcast::render::outofcore::{ChunkKey, OutOfCore};
+use voxcast::render::outofcore::{ChunkKey, OutOfCore, OutOfCoreParams};
 use voxcast::render::RenderParams;
 use voxcast::transfer::TransferFunction;
 use voxcast::{Image, RenderStats};
@@ -158,15 +158,14 @@ impl FrameRenderer for StoreFrames<'_> {
     }
 }
 
-/// The out-of-core renderer of `store` for a viewer within `budget`.
-pub fn renderer(store: &voxcast::io::zarr::ZarrStore, budget: u64) -> OutOfCore<'_> {
-    OutOfCore::new(
-        store,
-        voxcast::render::outofcore::OutOfCoreParams {
-            budget,
-            resident_only: true,
-            prefetch: false,
-            ..Default::default()
-        },
-    )
+/// The out-of-core parameters of a viewer's frames: within `budget`
+/// bytes, levels chosen with `lod_scale`, reading nothing.
+pub fn params(budget: u64, lod_scale: f32) -> OutOfCoreParams {
+    OutOfCoreParams {
+        budget,
+        lod_scale,
+        resident_only: true,
+        prefetch: false,
+        ..Default::default()
+    }
 }

@@ -25,6 +25,7 @@ use voxcast::geometry::Geometry;
 use voxcast::io::zarr::ZarrStore;
 use voxcast::io::OpenOptions;
 use voxcast::io::Series;
+use voxcast::render::outofcore::OutOfCoreParams;
 use voxcast::render::RenderParams;
 use voxcast::transfer::TransferFunction;
 use voxcast::{Image, RenderStats, Volume};
@@ -97,9 +98,10 @@ pub enum Source {
     /// level, taken from here once the level loader has read it
     /// ([`crate::levels`]).
     Levels(Arc<LevelSlots>),
-    /// A store too large for memory, drawn out of core within a budget
-    /// (bytes), refined as a loader reads chunks ([`crate::stream`]).
-    Store(Arc<ZarrStore>, u64),
+    /// A store too large for memory, drawn out of core with these
+    /// parameters (resident only), refined as a loader reads chunks
+    /// ([`crate::stream`]).
+    Store(Arc<ZarrStore>, OutOfCoreParams),
 }
 
 /// The one-place mailbox.
@@ -324,15 +326,15 @@ impl Thread {
     }
 
     fn run(&mut self, mailbox: &Mailbox) {
-        let Source::Store(store, budget) = &self.source else {
+        let Source::Store(store, params) = &self.source else {
             let on = OnDevice {
                 device: self.device.clone(),
                 geometry: self.geometry.clone(),
             };
             return self.serve(mailbox, &on);
         };
-        let (store, budget) = (store.clone(), *budget);
-        let ooc = crate::stream::renderer(&store, budget);
+        let store = store.clone();
+        let ooc = voxcast::render::outofcore::OutOfCore::new(&*store, params.clone());
         let wants = Wants::default();
         let (tx, notify) = (self.tx.clone(), self.notify.clone());
         std::thread::scope(|s| {
@@ -649,7 +651,7 @@ mod tests {
         voxcast::io::zarr::write::write_volume(&v, &p, &opts, &|_, _| {}).unwrap();
         let store = Arc::new(ZarrStore::open(&p).unwrap());
         let coarsest = Arc::new(store.read_level(2).unwrap());
-        let source = Source::Store(store, 64 << 20);
+        let source = Source::Store(store, crate::stream::params(64 << 20, 1.0));
         let w = Worker::spawn(Device::Cpu, source, 0, coarsest, None, || {});
         let mut finest = Vec::new();
         for generation in 1..20 {

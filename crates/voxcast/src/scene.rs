@@ -76,6 +76,8 @@ struct InputFields {
     time: Option<f64>,
     #[serde(default)]
     level: Option<usize>,
+    #[serde(default)]
+    lod_scale: Option<f32>,
 }
 
 impl From<InputFields> for InputSpec {
@@ -88,6 +90,7 @@ impl From<InputFields> for InputSpec {
                 variable: f.variable,
                 time: f.time,
                 level: f.level,
+                lod_scale: f.lod_scale,
             },
         }
     }

@@ -42,6 +42,7 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
     let levels = store.levels();
     let budget = a.memory_budget.unwrap_or_else(outofcore::default_budget);
     let cam = camera_over(scene, levels);
+    let lod_scale = lod_scale(scene)?;
     let level = match scene.input.options.level {
         Some(l) if l >= levels.len() => bail!(
             "--level {l}: {} has levels 0…{}",
@@ -49,7 +50,7 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
             levels.len() - 1
         ),
         Some(l) => l,
-        None => outofcore::choose_level(levels, &cam, 1.0),
+        None => outofcore::choose_level(levels, &cam, lod_scale),
     };
     let bytes = levels[level].bytes(store.scalar_type());
     // In core the renderer keeps a second copy of the voxels laid out for
@@ -81,9 +82,20 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
     let ooc = OutOfCoreParams {
         budget,
         level: scene.input.options.level,
+        lod_scale,
         ..Default::default()
     };
     Ok(Some(Plan::OutOfCore(Box::new(store), ooc)))
+}
+
+/// The scene's `lod_scale` (`--lod-scale`; 1 when not given), checked: a
+/// scene file may hold any number.
+pub fn lod_scale(scene: &Scene) -> Result<f32> {
+    match scene.input.options.lod_scale {
+        None => Ok(1.0),
+        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+        Some(x) => bail!("lod_scale {x}: expected a positive number (1: a voxel no larger than a pixel; 2: a level coarser)"),
+    }
 }
 
 /// The scene prepared from a stand-in for the store's volume, and the

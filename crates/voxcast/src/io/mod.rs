@@ -68,6 +68,11 @@ pub struct OpenOptions {
     /// finest.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub level: Option<usize>,
+    /// Scales the pixel size a store's level is chosen by (where `level`
+    /// is not given): 2 reads levels a step coarser (faster), 0.5 a step
+    /// finer; 1 when not given.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lod_scale: Option<f32>,
 }
 
 /// The formats voxcast reads.

@@ -208,6 +208,7 @@ fn render_split(
         OutOfCoreParams {
             budget: default_budget(),
             level: scene.input.options.level,
+            lod_scale: crate::cmd::render_chunked::lod_scale(scene)?,
             ..Default::default()
         },
     );

@@ -296,6 +296,7 @@ pub fn render(a: &RenderArgs, world: &SimpleCommunicator) -> Result<()> {
         OutOfCoreParams {
             budget: a.memory_budget.unwrap_or_else(default_budget),
             level: scene.input.options.level,
+            lod_scale: crate::cmd::render_chunked::lod_scale(&scene)?,
             ..Default::default()
         },
     );
@@ -468,6 +469,7 @@ pub fn bench(a: &BenchArgs, world: &SimpleCommunicator) -> Result<()> {
         OutOfCoreParams {
             budget: default_budget(),
             level: scene.input.options.level,
+            lod_scale: crate::cmd::render_chunked::lod_scale(&scene)?,
             ..Default::default()
         },
     );
