@@ -155,6 +155,10 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
         Some(Format::MitsubaVol)
     } else if wrf::is_wrf_name(&name) {
         Some(Format::Wrf)
+    } else if name.ends_with(".zip") || name.ends_with(".ozx") {
+        // A zipped Zarr store; any other zip file is refused by the
+        // store's reader, naming what it lacks.
+        Some(Format::Zarr)
     } else {
         None
     };
@@ -195,7 +199,7 @@ pub fn detect(path: &Path, opts: &OpenOptions) -> Result<Format> {
     } else {
         Err(Error::unsupported(
             path,
-            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .hdr/.img .mgh .mgz .mnc .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, Zarr/OME-Zarr folders, PNG/TIFF slice folders or globs, raw with --raw-dims)",
+            "unknown format (known: .nrrd .nhdr .mhd .mha .vtk .nii .nii.gz .hdr/.img .mgh .mgz .mnc .vdb .smv .vol .nc/wrfout_*, DICOM folders or .dcm, Zarr/OME-Zarr folders (or .zip/.ozx), PNG/TIFF slice folders or globs, raw with --raw-dims)",
         ))
     }
 }

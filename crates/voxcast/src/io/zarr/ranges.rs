@@ -1,8 +1,8 @@
 //! The sidecar `voxcast convert` writes beside each level: every chunk's
 //! value range, so the renderer skips transparent chunks unread.
 
+use super::meta::Keys;
 use crate::volume::Level;
-use std::path::Path;
 
 /// The file beside each level's array metadata that holds its chunks'
 /// value ranges (stores written by `voxcast convert`).
@@ -18,20 +18,25 @@ pub(super) struct Ranges {
 
 /// The sidecar of chunk ranges beside an array, if present and of the
 /// level's chunk grid.
-pub(super) fn read_ranges(array_dir: &Path, l: &Level) -> Option<Ranges> {
-    let p = array_dir.join(RANGES_FILE);
-    let meta = std::fs::metadata(&p).ok()?;
+pub(super) fn read_ranges(keys: &Keys<'_>, array: &str, l: &Level) -> Option<Ranges> {
+    let k = if array.is_empty() {
+        RANGES_FILE.to_string()
+    } else {
+        format!("{}/{RANGES_FILE}", array.trim_end_matches('/'))
+    };
+    let p = keys.root.join(&k);
+    let len = keys.size(&k)?;
     let counts = l.chunk_counts();
     // Checked: the chunk counts come from the store's metadata.
     let want = counts
         .iter()
         .try_fold(8u64, |b, &n| b.checked_mul(n))
         .and_then(|b| b.checked_add(32));
-    if want != Some(meta.len()) {
+    if want != Some(len) {
         eprintln!(
             "warning: {}: {} bytes where the level's {}×{}×{} chunks need {}; ignored (chunks will be read to learn their values)",
             p.display(),
-            meta.len(),
+            len,
             counts[0],
             counts[1],
             counts[2],
@@ -39,7 +44,7 @@ pub(super) fn read_ranges(array_dir: &Path, l: &Level) -> Option<Ranges> {
         );
         return None;
     }
-    let bytes = std::fs::read(&p).ok()?;
+    let bytes = keys.bytes(&k).ok()?;
     if &bytes[..8] != RANGES_MAGIC {
         return None;
     }

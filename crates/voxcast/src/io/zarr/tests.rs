@@ -311,3 +311,131 @@ fn the_out_of_core_render_of_a_store_is_the_in_core_picture() {
     assert!(sa.empty > 0 && sa.bytes_read > 0, "{sa:?}");
     assert!(sa.cache.misses < sb.cache.misses, "{sa:?} {sb:?}");
 }
+
+/// The files under `dir` as a zip file of stored (uncompressed) entries,
+/// as OME-Zarr's zipped stores are written: a minimal writer (no zip64).
+fn zip_stored(dir: &Path, out: &Path) {
+    fn crc32(b: &[u8]) -> u32 {
+        let mut c = !0u32;
+        for &x in b {
+            c ^= x as u32;
+            for _ in 0..8 {
+                c = if c & 1 == 1 {
+                    (c >> 1) ^ 0xEDB8_8320
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+    fn files(d: &Path, root: &Path, out: &mut Vec<(String, Vec<u8>)>) {
+        let mut entries: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        entries.sort();
+        for p in entries {
+            if p.is_dir() {
+                files(&p, root, out);
+            } else {
+                let name = p
+                    .strip_prefix(root)
+                    .unwrap()
+                    .to_string_lossy()
+                    .replace('\\', "/");
+                out.push((name, std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    let mut list = Vec::new();
+    files(dir, dir, &mut list);
+    let (mut body, mut central) = (Vec::new(), Vec::new());
+    let u16le = |v: &mut Vec<u8>, x: u16| v.extend_from_slice(&x.to_le_bytes());
+    let u32le = |v: &mut Vec<u8>, x: u32| v.extend_from_slice(&x.to_le_bytes());
+    for (name, data) in &list {
+        let (crc, n, offset) = (crc32(data), data.len() as u32, body.len() as u32);
+        u32le(&mut body, 0x0403_4b50);
+        for x in [20, 0, 0, 0, 0] {
+            u16le(&mut body, x);
+        }
+        for x in [crc, n, n] {
+            u32le(&mut body, x);
+        }
+        u16le(&mut body, name.len() as u16);
+        u16le(&mut body, 0);
+        body.extend_from_slice(name.as_bytes());
+        body.extend_from_slice(data);
+        u32le(&mut central, 0x0201_4b50);
+        for x in [20, 20, 0, 0, 0, 0] {
+            u16le(&mut central, x);
+        }
+        for x in [crc, n, n] {
+            u32le(&mut central, x);
+        }
+        for x in [name.len() as u16, 0, 0, 0, 0] {
+            u16le(&mut central, x);
+        }
+        u32le(&mut central, 0);
+        u32le(&mut central, offset);
+        central.extend_from_slice(name.as_bytes());
+    }
+    let (cd_offset, cd_len) = (body.len() as u32, central.len() as u32);
+    body.extend_from_slice(&central);
+    u32le(&mut body, 0x0605_4b50);
+    for x in [0, 0, list.len() as u16, list.len() as u16] {
+        u16le(&mut body, x);
+    }
+    u32le(&mut body, cd_len);
+    u32le(&mut body, cd_offset);
+    u16le(&mut body, 0);
+    std::fs::write(out, body).unwrap();
+}
+
+#[test]
+fn a_store_in_a_zip_file_reads_as_the_folder() {
+    // OME-Zarr's zipped stores (`.ozx`, or any `.zip`): the same levels,
+    // voxels, chunk ranges (the sidecar) and unwritten chunks as the
+    // folder the zip was made from; a zip without a store, or not a zip,
+    // is a clear error.
+    let vol = sample([37, 29, 23]);
+    for format in [ZarrFormat::V2, ZarrFormat::V3] {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.zarr");
+        write_volume(&vol, &p, &opts(format, Compression::Zstd(3)), &|_, _| {}).unwrap();
+        let z = dir.path().join("s.ozx");
+        zip_stored(&p, &z);
+        assert!(is_zarr(&z), "{format:?}");
+        assert_eq!(
+            crate::io::detect(&z, &OpenOptions::default()).unwrap(),
+            crate::io::Format::Zarr
+        );
+        let (a, b) = (ZarrStore::open(&p).unwrap(), ZarrStore::open(&z).unwrap());
+        assert_eq!(a.levels(), b.levels(), "{format:?}");
+        assert_eq!(b.info().zarr_format, a.info().zarr_format);
+        for l in 0..a.levels().len() {
+            assert_eq!(
+                a.read_level(l).unwrap().data(),
+                b.read_level(l).unwrap().data()
+            );
+        }
+        assert_eq!(b.chunk_range(0, [0, 0, 0]), ChunkRange::Fill(0.0));
+        assert_eq!(b.chunk_range(0, [2, 1, 3]), a.chunk_range(0, [2, 1, 3]));
+        assert!(matches!(b.chunk_range(0, [2, 1, 3]), ChunkRange::Range(..)));
+        assert_eq!(b.value_range(), a.value_range());
+        assert!(b.bytes_read() > 0);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    std::fs::write(empty.join("readme.txt"), b"no store here").unwrap();
+    let z = dir.path().join("other.zip");
+    zip_stored(&empty, &z);
+    assert!(!is_zarr(&z));
+    let e = ZarrStore::open(&z).err().unwrap().to_string();
+    assert!(e.contains("not a Zarr store") && e.contains(".ozx"), "{e}");
+    let junk = dir.path().join("junk.zip");
+    std::fs::write(&junk, vec![7u8; 500]).unwrap();
+    let e = ZarrStore::open(&junk).err().unwrap().to_string();
+    assert!(e.contains("junk.zip") && e.contains("zip"), "{e}");
+}
