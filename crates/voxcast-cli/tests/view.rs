@@ -216,6 +216,31 @@ fn series_frame_and_time_are_saved_and_reproduced() {
     assert_matches_render(dir.path(), "series view vs render");
 }
 
+/// `builtin:demo` (128³) converted to `demo.zarr` in `dir` in chunks of
+/// `chunk`; its path.
+fn demo_store(dir: &Path, chunk: &str) -> String {
+    let store = dir.join("demo.zarr");
+    let store = store.to_str().unwrap().to_string();
+    let o = voxcast(
+        &["convert", "builtin:demo", "-o", &store, "--chunk", chunk],
+        dir,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    store
+}
+
+/// The levels a scripted view's `--stats-json st.json` says it showed.
+fn shown_levels(dir: &Path) -> Vec<u64> {
+    let stats: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("st.json")).unwrap()).unwrap();
+    stats["levels"]
+        .as_array()
+        .unwrap_or_else(|| panic!("no levels: {stats}"))
+        .iter()
+        .map(|l| l.as_u64().unwrap())
+        .collect()
+}
+
 /// An OME-Zarr store opens at once at its coarsest level and refines, level
 /// by level as they are read, down to level 0 (the images painted say which
 /// level each showed); the scripted run waits for level 0, and the saved
@@ -226,13 +251,8 @@ fn a_store_opens_at_the_coarsest_level_and_refines_to_level_0() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let store = dir.path().join("demo.zarr");
-    let store = store.to_str().unwrap();
-    let o = voxcast(
-        &["convert", "builtin:demo", "-o", store, "--chunk", "32"],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let store = demo_store(dir.path(), "32");
+    let store = store.as_str();
     let args = [
         store,
         "--size",
@@ -250,19 +270,11 @@ fn a_store_opens_at_the_coarsest_level_and_refines_to_level_0() {
     ];
     let o = view(&args, dir.path());
     assert_ran(&o);
-    let stats: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
-            .unwrap();
-    let levels: Vec<u64> = stats["levels"]
-        .as_array()
-        .expect("levels")
-        .iter()
-        .map(|l| l.as_u64().unwrap())
-        .collect();
+    let levels = shown_levels(dir.path());
     // Levels 128³, 64³, 32³: the first image is of level 2, the last of 0,
     // finer and finer in between.
-    assert_eq!(levels.first(), Some(&2), "{stats}");
-    assert_eq!(levels.last(), Some(&0), "{stats}");
+    assert_eq!(levels.first(), Some(&2), "{levels:?}");
+    assert_eq!(levels.last(), Some(&0), "{levels:?}");
     assert!(levels.windows(2).all(|w| w[0] > w[1]), "{levels:?}");
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("levels shown: 2"), "{e}");
@@ -294,13 +306,8 @@ fn a_store_too_large_for_memory_is_drawn_out_of_core_and_refines_by_region() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    let store = dir.path().join("demo.zarr");
-    let store = store.to_str().unwrap();
-    let o = voxcast(
-        &["convert", "builtin:demo", "-o", store, "--chunk", "16"],
-        dir.path(),
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let store = demo_store(dir.path(), "16");
+    let store = store.as_str();
     // Level 0 is 2 MiB: twice it does not fit in 3 MiB, its chunks do.
     let args = [
         store,
@@ -325,19 +332,11 @@ fn a_store_too_large_for_memory_is_drawn_out_of_core_and_refines_by_region() {
     assert_ran(&o);
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("out of core"), "{e}");
-    let stats: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.path().join("st.json")).unwrap())
-            .unwrap();
-    let levels: Vec<u64> = stats["levels"]
-        .as_array()
-        .expect("levels")
-        .iter()
-        .map(|l| l.as_u64().unwrap())
-        .collect();
+    let levels = shown_levels(dir.path());
     // The finest level of each new image: 3 (16³, all of it) first, then
     // finer, down to level 0 near the eye.
-    assert_eq!(levels.first(), Some(&3), "{stats}");
-    assert_eq!(levels.last(), Some(&0), "{stats}");
+    assert_eq!(levels.first(), Some(&3), "{levels:?}");
+    assert_eq!(levels.last(), Some(&0), "{levels:?}");
     assert!(levels.windows(2).all(|w| w[0] > w[1]), "{levels:?}");
     let psnr = check_matches_render_with(dir.path(), &["--out-of-core", "--memory-budget", "3MiB"]);
     eprintln!("streamed store view vs render: PSNR {psnr:.2} dB");

@@ -423,14 +423,15 @@ impl<'s> OutOfCore<'s> {
             resident: None,
         };
         // Resident only: the chunks the plan finds in memory are held
-        // (the cache cannot evict them) until the frame is drawn.
+        // (the cache cannot evict them) until the frame is drawn, and each
+        // is asked once: the loader adds chunks meanwhile, and the plan may
+        // walk the tree twice (its base must not change in between).
         let held = std::cell::RefCell::new(std::collections::HashMap::new());
-        let resident = |l: usize, k: [u64; 3]| match self.cache.peek((l, k)) {
-            Some(c) => {
-                held.borrow_mut().insert((l, k), c);
-                true
-            }
-            None => false,
+        let resident = |l: usize, k: [u64; 3]| {
+            let mut held = held.borrow_mut();
+            held.entry((l, k))
+                .or_insert_with(|| self.cache.peek((l, k)))
+                .is_some()
         };
         let planner = plan::Planner {
             resident: ooc.resident_only.then_some(&resident as _),
@@ -445,8 +446,11 @@ impl<'s> OutOfCore<'s> {
         let mut wanted = std::mem::take(&mut plan.wanted);
         let asked = wanted.len();
         if !wanted.is_empty() {
-            let mut used: std::collections::HashSet<ChunkKey> =
-                held.borrow().keys().copied().collect();
+            let mut used: std::collections::HashSet<ChunkKey> = held
+                .borrow()
+                .iter()
+                .filter_map(|(k, c)| c.as_ref().map(|_| *k))
+                .collect();
             used.extend(
                 plan.bricks
                     .iter()

@@ -127,7 +127,7 @@ impl<'a> LevelGeo<'a> {
 }
 
 /// The indices of the box `[lo, hi)`, x fastest.
-fn cells(lo: [u64; 3], hi: [u64; 3]) -> impl Iterator<Item = [u64; 3]> {
+fn cells(lo: [u64; 3], hi: [u64; 3]) -> impl Iterator<Item = [u64; 3]> + Clone {
     (lo[2]..hi[2])
         .flat_map(move |z| (lo[1]..hi[1]).flat_map(move |y| (lo[0]..hi[0]).map(move |x| [x, y, z])))
 }
@@ -428,15 +428,13 @@ impl Planner<'_> {
             let hi = ((c[a] + 1) * ch[a] as u64 * fl[a]).div_ceil(chf[a] as u64);
             (lo, hi.min(n[a]))
         });
-        let mut kids: Vec<(i64, [u64; 3])> = cells(span.map(|s| s.0), span.map(|s| s.1))
-            .map(|k| (self.key(l - 1, k, base, &w.cum), k))
-            .collect();
-        kids.sort_by_key(|k| k.0);
+        let kids = cells(span.map(|s| s.0), span.map(|s| s.1));
         if let Some(resident) = self.resident {
             // Split only where the children are in memory; else this
-            // chunk stands for them, and what they lack is wanted.
+            // chunk stands for them, and what they lack is wanted. (Before
+            // their sort keys: a child finer than the base has none.)
             let before = w.wanted.len();
-            for &(_, k) in &kids {
+            for k in kids.clone() {
                 self.wants(l - 1, k, resident, w);
             }
             if w.wanted.len() > before {
@@ -444,6 +442,10 @@ impl Planner<'_> {
                 return;
             }
         }
+        let mut kids: Vec<(i64, [u64; 3])> = kids
+            .map(|k| (self.key(l - 1, k, base, &w.cum), k))
+            .collect();
+        kids.sort_by_key(|k| k.0);
         for (_, k) in kids {
             self.descend(l - 1, k, base, w);
         }
