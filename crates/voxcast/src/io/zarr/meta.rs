@@ -1,61 +1,11 @@
 //! OME-Zarr metadata: the group's attributes, the multiscales' axes and
 //! coordinate transformations, and what an array's metadata names.
 
+use super::keys::Keys;
 use crate::error::{Error, Result};
 use serde_json::Value;
 use std::path::Path;
 use zarrs::array::ArrayMetadata;
-use zarrs::storage::{ReadableStorageTraits, StoreKey};
-
-/// A store's keys, read for its metadata (the folder's files, or a zip
-/// file's entries); `root` names the store in messages.
-pub(super) struct Keys<'a> {
-    pub root: &'a Path,
-    pub storage: &'a dyn ReadableStorageTraits,
-}
-
-impl Keys<'_> {
-    /// Whether the store has key `k`.
-    pub fn exists(&self, k: &str) -> bool {
-        self.size(k).is_some()
-    }
-
-    /// The size of key `k`, where it is there.
-    pub fn size(&self, k: &str) -> Option<u64> {
-        StoreKey::new(k)
-            .ok()
-            .and_then(|k| self.storage.size_key(&k).ok().flatten())
-    }
-
-    /// The bytes of key `k`.
-    pub fn bytes(&self, k: &str) -> Result<Vec<u8>> {
-        let p = self.root.join(k);
-        let key = StoreKey::new(k).map_err(|e| Error::format(&p, "key", e.to_string()))?;
-        match self.storage.get(&key) {
-            Ok(Some(b)) => Ok(b.to_vec()),
-            Ok(None) => Err(Error::io(
-                &p,
-                std::io::Error::new(std::io::ErrorKind::NotFound, "not in the store"),
-            )),
-            Err(e) => Err(Error::format(&p, "read", e.to_string())),
-        }
-    }
-
-    /// Key `k` as JSON (at most 64 MiB).
-    pub fn json(&self, k: &str) -> Result<Value> {
-        let p = self.root.join(k);
-        let n = self.size(k).unwrap_or(0);
-        if n > 64 << 20 {
-            return Err(Error::format(
-                &p,
-                "size",
-                format!("{n} bytes of JSON metadata (at most 64 MiB)"),
-            ));
-        }
-        let bytes = self.bytes(k)?;
-        serde_json::from_slice(&bytes).map_err(|e| Error::format(&p, "JSON", e.to_string()))
-    }
-}
 
 /// The group's attributes: `zarr.json`'s `attributes` (v3) or `.zattrs` (v2).
 pub(super) fn group_attributes(

@@ -22,14 +22,17 @@
 //! the level's array metadata), so the renderer skips transparent chunks
 //! without reading them; other tools ignore it.
 
+mod keys;
 mod meta;
 mod ranges;
 mod summary;
 pub mod write;
 
+pub use keys::is_zarr;
+use keys::{open_storage, Keys};
 use meta::{
     codec_names, compose_scale, compose_translation, data_type_name, group_attributes, parse_axes,
-    spatial_axes, transforms, Keys,
+    spatial_axes, transforms,
 };
 pub use ranges::RANGES_FILE;
 use ranges::{read_ranges, Ranges};
@@ -42,64 +45,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use zarrs::array::{Array, ArrayShardedExt, ArraySubset};
-use zarrs::filesystem::FilesystemStore;
 use zarrs::storage::storage_adapter::performance_metrics::PerformanceMetricsStorageAdapter;
 use zarrs::storage::ReadableStorageTraits;
 
 type Storage = PerformanceMetricsStorageAdapter<dyn ReadableStorageTraits>;
-
-/// The files that mark a Zarr store or array at its root.
-const MARKERS: [&str; 3] = ["zarr.json", ".zgroup", ".zarray"];
-
-/// True if `path` is a Zarr store or array: a folder holding `zarr.json`
-/// (v3), `.zgroup` or `.zarray` (v2), or a zip file (`.zip`, `.ozx`) with
-/// one of them at its root.
-pub fn is_zarr(path: &Path) -> bool {
-    if path.is_dir() {
-        return MARKERS.iter().any(|f| path.join(f).is_file());
-    }
-    is_zip_name(path)
-        && open_storage(path).is_ok_and(|s| MARKERS.iter().any(|m| exists(s.as_ref(), m)))
-}
-
-/// A file name a zipped store has: `.zip` or `.ozx` (OME-Zarr's).
-fn is_zip_name(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("zip") || e.eq_ignore_ascii_case("ozx"))
-}
-
-/// The store's keys: the folder's files, or the zip file's entries.
-fn open_storage(path: &Path) -> Result<Arc<dyn ReadableStorageTraits>> {
-    if path.is_file() {
-        let (dir, name) = match (path.parent(), path.file_name().and_then(|n| n.to_str())) {
-            (Some(d), Some(n)) => (
-                if d.as_os_str().is_empty() {
-                    Path::new(".")
-                } else {
-                    d
-                },
-                n,
-            ),
-            _ => return Err(Error::unsupported(path, "not a zip file name")),
-        };
-        let fs = FilesystemStore::new(dir).map_err(|e| zerr(path, "store", e))?;
-        let key = zarrs::storage::StoreKey::new(name).map_err(|e| zerr(path, "file name", e))?;
-        let zip = zarrs_zip::ZipStorageAdapter::new(Arc::new(fs), key)
-            .map_err(|e| Error::format(path, "zip", e.to_string()))?;
-        return Ok(Arc::new(zip));
-    }
-    let fs = FilesystemStore::new(path).map_err(|e| zerr(path, "store", e))?;
-    Ok(Arc::new(fs))
-}
-
-/// Whether the store has key `k`.
-fn exists(s: &dyn ReadableStorageTraits, k: &str) -> bool {
-    zarrs::storage::StoreKey::new(k)
-        .ok()
-        .and_then(|k| s.size_key(&k).ok().flatten())
-        .is_some()
-}
 
 /// How a store's values are kept on disk (the volume type they are read
 /// into is [`StoredType::volume_type`]).
@@ -269,22 +218,25 @@ impl ZarrStore {
     /// Opens the store at `path`; `opts.time` picks the index on a `t`
     /// axis and `opts.variable` the channel.
     pub fn open_with(path: &Path, opts: &OpenOptions) -> Result<ZarrStore> {
-        // A zip file that cannot be read says why.
-        if path.is_file() && is_zip_name(path) {
-            open_storage(path)?;
-        }
-        if !is_zarr(path) {
-            return Err(Error::unsupported(
+        // Opened once (a zip file's directory is read here); a zip file
+        // that cannot be read says why.
+        let not_a_store = || {
+            Error::unsupported(
                 path,
                 "not a Zarr store: expected a folder with zarr.json (Zarr v3), .zgroup or .zarray (Zarr v2), or a .zip/.ozx file with one of them at its root",
-            ));
-        }
-        let keys = open_storage(path)?;
+            )
+        };
+        let Some(keys) = open_storage(path)? else {
+            return Err(not_a_store());
+        };
         let storage = Arc::new(PerformanceMetricsStorageAdapter::new(keys.clone()));
         let keys = Keys {
             root: path,
             storage: keys.as_ref(),
         };
+        if !keys.is_store() {
+            return Err(not_a_store());
+        }
         let zarr_format = if keys.exists("zarr.json") { 3 } else { 2 };
         let root_is_array = keys.exists(".zarray") || {
             zarr_format == 3 && keys.json("zarr.json")?["node_type"] == "array"

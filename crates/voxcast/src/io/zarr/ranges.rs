@@ -1,7 +1,7 @@
 //! The sidecar `voxcast convert` writes beside each level: every chunk's
 //! value range, so the renderer skips transparent chunks unread.
 
-use super::meta::Keys;
+use super::keys::Keys;
 use crate::volume::Level;
 
 /// The file beside each level's array metadata that holds its chunks'
