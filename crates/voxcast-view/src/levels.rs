@@ -58,15 +58,7 @@ impl Pyramid {
         if opts.level.is_some() || !matches!(voxcast::io::detect(path, opts), Ok(Format::Zarr)) {
             return Ok(None);
         }
-        let lod_scale = match opts.lod_scale {
-            None => 1.0,
-            Some(x) if x.is_finite() && x > 0.0 => x,
-            Some(x) => {
-                return Err(voxcast::Error::invalid(format!(
-                    "lod_scale {x}: expected a positive number"
-                )))
-            }
-        };
+        let lod_scale = opts.lod_scale()?;
         let store = ZarrStore::open_with(path, opts)?;
         let coarsest = store.levels().len().saturating_sub(1);
         let Some(finest) = store.finest_within(budget / 2) else {

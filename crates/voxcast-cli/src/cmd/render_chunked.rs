@@ -91,11 +91,7 @@ pub fn plan(a: &RenderArgs, scene: &Scene) -> Result<Option<Plan>> {
 /// The scene's `lod_scale` (`--lod-scale`; 1 when not given), checked: a
 /// scene file may hold any number.
 pub fn lod_scale(scene: &Scene) -> Result<f32> {
-    match scene.input.options.lod_scale {
-        None => Ok(1.0),
-        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-        Some(x) => bail!("lod_scale {x}: expected a positive number (1: a voxel no larger than a pixel; 2: a level coarser)"),
-    }
+    Ok(scene.input.options.lod_scale()?)
 }
 
 /// The scene prepared from a stand-in for the store's volume, and the

@@ -75,6 +75,20 @@ pub struct OpenOptions {
     pub lod_scale: Option<f32>,
 }
 
+impl OpenOptions {
+    /// `lod_scale`, 1 where not given; a scene file may hold any number,
+    /// so it is checked here.
+    pub fn lod_scale(&self) -> Result<f32> {
+        match self.lod_scale {
+            None => Ok(1.0),
+            Some(x) if x.is_finite() && x > 0.0 => Ok(x),
+            Some(x) => Err(Error::invalid(format!(
+                "lod_scale {x}: expected a positive number (1: a voxel no larger than a pixel; 2: a level coarser)"
+            ))),
+        }
+    }
+}
+
 /// The formats voxcast reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
