@@ -311,21 +311,27 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             elevation,
             ..Default::default()
         };
-        for (method, shading) in [
-            (Method::Uniform, false),
-            (Method::Uniform, true),
-            (Method::Importance, false),
-            (Method::Importance, true),
-            (Method::Lod, false),
-            (Method::Lod, true),
-            (Method::Threshold, false),
-            (Method::Threshold, true),
+        for (method, shading, grouped) in [
+            (Method::Uniform, false, false),
+            (Method::Uniform, true, false),
+            (Method::Importance, false, false),
+            (Method::Importance, true, false),
+            (Method::Lod, false, false),
+            (Method::Lod, true, false),
+            (Method::Threshold, false, false),
+            (Method::Threshold, true, false),
+            // The step-per-block walks jump the empty cubes too.
+            (Method::Adaptive, false, false),
+            (Method::Adaptive, true, true),
+            (Method::AdaptiveMax, false, true),
+            (Method::Uniform, true, true),
         ] {
             let mut p = RenderParams {
                 width: 64,
                 height: 48,
                 method,
                 shading,
+                grouped,
                 step: 0.41,
                 spp: 2,
                 seed: 3,
@@ -337,7 +343,7 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
                 p.simd = level;
                 let (simd, ss) = r.render(&tf, &cam, &p, &no_progress).unwrap();
                 let what = format!(
-                    "{name}: {} azimuth {azimuth} elevation {elevation} shading {shading}",
+                    "{name}: {} grouped {grouped} azimuth {azimuth} elevation {elevation} shading {shading}",
                     method.name()
                 );
                 let d = max_diff(&simd, &scalar);

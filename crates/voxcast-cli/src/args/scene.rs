@@ -186,8 +186,10 @@ pub struct SceneArgs {
     /// front-to-back renders of uniform, jitter, importance, the adaptive methods and
     /// uniform (grouped or not), lod and threshold (threshold+grouped,
     /// stratified, mc and back to front run the scalar loop); `avx2` keeps the
-    /// packets to AVX2; `scalar` always runs the scalar loop (the same
-    /// picture).
+    /// packets to AVX2, fetching with its gather instructions; `avx2-loads`
+    /// to AVX2 fetching with scalar loads (what `auto` picks on AMD CPUs
+    /// without AVX-512, whose gathers are slower); `scalar` always runs the
+    /// scalar loop (the same picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,
     /// Gradient (Blinn–Phong) shading: on or off (default on).
@@ -306,6 +308,7 @@ pub enum OrderArg {
 pub enum SimdArg {
     Auto,
     Avx2,
+    Avx2Loads,
     Scalar,
 }
 
@@ -427,6 +430,7 @@ impl SceneArgs {
             r.simd = match v {
                 SimdArg::Auto => Simd::Auto,
                 SimdArg::Avx2 => Simd::Avx2,
+                SimdArg::Avx2Loads => Simd::Avx2Loads,
                 SimdArg::Scalar => Simd::Scalar,
             };
         }

@@ -282,8 +282,12 @@ pub enum Simd {
     #[default]
     Auto,
     /// The packets compiled for AVX2 + FMA even where the CPU has AVX-512
-    /// (to compare the two, and to test each).
+    /// (to compare the two, and to test each), fetching by the AVX2
+    /// gathers.
     Avx2,
+    /// The AVX2 packets fetching by scalar loads (what `Auto` picks on
+    /// AMD CPUs without AVX-512).
+    Avx2Loads,
     /// The scalar loop always (the reference the packets are tested
     /// against).
     Scalar,

@@ -105,9 +105,12 @@ pub(super) trait Simd: Copy {
     unsafe fn but(a: Self::M, b: Self::M) -> Self::M;
 }
 
-/// Eight lanes in AVX2 registers.
+/// Eight lanes in AVX2 registers. `LOADS`: gathers and table rows fetched
+/// by one scalar load per lane instead of the AVX2 gather instructions,
+/// which AMD's cores before Zen 4 run slower than the loads (see
+/// [`super::gathers_by_loads`]); the same values either way.
 #[derive(Clone, Copy)]
-pub(super) struct W8;
+pub(super) struct W8<const LOADS: bool>;
 
 /// Sixteen lanes in AVX-512 registers.
 #[derive(Clone, Copy)]

@@ -6,7 +6,7 @@
 //! scalar march restarts at the next block that is not empty.
 
 #[cfg(target_arch = "x86_64")]
-pub(super) use vector::{thr_avx2, thr_avx512};
+pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512};
 
 use super::{Lane, Packets, Runs, Setup};
 use crate::render::march::ThresholdParams;
@@ -92,9 +92,46 @@ mod vector {
         lanes: &[Option<Lane>; LANES],
         st: &mut State<'_>,
     ) {
+        halves::<false, T, R, SKIP, SHADE>(pk, lanes, st)
+    }
+
+    /// [`thr_avx2`] fetching by scalar loads.
+    ///
+    /// # Safety
+    /// As [`thr_avx2`].
+    #[target_feature(enable = "avx2,fma")]
+    pub(in crate::render::packet) unsafe fn thr_avx2_loads<
+        T: Voxel,
+        R: Runs<T>,
+        const SKIP: bool,
+        const SHADE: bool,
+    >(
+        pk: &Packets<'_, T, R>,
+        lanes: &[Option<Lane>; LANES],
+        st: &mut State<'_>,
+    ) {
+        halves::<true, T, R, SKIP, SHADE>(pk, lanes, st)
+    }
+
+    /// The sixteen lanes as two packets of eight.
+    ///
+    /// # Safety
+    /// As [`thr_avx2`].
+    #[inline(always)]
+    unsafe fn halves<
+        const LOADS: bool,
+        T: Voxel,
+        R: Runs<T>,
+        const SKIP: bool,
+        const SHADE: bool,
+    >(
+        pk: &Packets<'_, T, R>,
+        lanes: &[Option<Lane>; LANES],
+        st: &mut State<'_>,
+    ) {
         for h in [0..LANES / 2, LANES / 2..LANES] {
             if lanes[h.clone()].iter().any(Option::is_some) {
-                march::<W8, T, R, SKIP, SHADE>(pk, &lanes[h.clone()], &mut st.part(h));
+                march::<W8<LOADS>, T, R, SKIP, SHADE>(pk, &lanes[h.clone()], &mut st.part(h));
             }
         }
     }

@@ -483,9 +483,54 @@ pub(super) unsafe fn march_avx2<
     lanes: &[Option<Lane>; LANES],
     st: &mut State<'_>,
 ) {
+    halves::<false, T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
+}
+
+/// [`march_avx2`] fetching by scalar loads ([`W8`]`<true>`).
+///
+/// # Safety
+/// As [`march_avx2`].
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn march_avx2_loads<
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
+    lanes: &[Option<Lane>; LANES],
+    st: &mut State<'_>,
+) {
+    halves::<true, T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
+}
+
+/// The sixteen lanes as two packets of eight, one after the other.
+///
+/// # Safety
+/// As [`march_avx2`].
+#[inline(always)]
+unsafe fn halves<
+    const LOADS: bool,
+    T: Voxel,
+    R: Runs<T>,
+    const SKIP: bool,
+    const SHADE: bool,
+    const IMP: bool,
+    const GROUPED: bool,
+>(
+    pk: &Packets<'_, T, R>,
+    lanes: &[Option<Lane>; LANES],
+    st: &mut State<'_>,
+) {
     for h in [0..LANES / 2, LANES / 2..LANES] {
         if lanes[h.clone()].iter().any(Option::is_some) {
-            march::<W8, T, R, SKIP, SHADE, IMP, GROUPED>(pk, &lanes[h.clone()], &mut st.part(h));
+            march::<W8<LOADS>, T, R, SKIP, SHADE, IMP, GROUPED>(
+                pk,
+                &lanes[h.clone()],
+                &mut st.part(h),
+            );
         }
     }
 }

@@ -1,5 +1,6 @@
 //! [`W8`]: eight lanes in AVX2 registers, lane masks as float vectors
-//! (all ones or all zeros per lane).
+//! (all ones or all zeros per lane); its fetches by the AVX2 gathers, or
+//! lane by lane with scalar loads (`W8<true>`).
 
 use super::{Simd, W8};
 use std::arch::x86_64::*;
@@ -78,7 +79,7 @@ unsafe fn compress_order(m: __m256) -> __m256i {
     _mm256_and_si256(sh, _mm256_set1_epi32(7))
 }
 
-impl Simd for W8 {
+impl<const LOADS: bool> Simd for W8<LOADS> {
     const N: usize = 8;
     type F = F8;
     type I = I8;
@@ -241,10 +242,30 @@ impl Simd for W8 {
     }
     #[inline(always)]
     unsafe fn gather<const SCALE: i32>(p: *const i32, idx: I8) -> I8 {
+        if LOADS {
+            let ix = Self::store_i(idx);
+            let b = p as *const u8;
+            let at = |k: usize| b.offset(ix[k] as isize * SCALE as isize) as *const i32;
+            return I8(_mm256_setr_epi32(
+                at(0).read_unaligned(),
+                at(1).read_unaligned(),
+                at(2).read_unaligned(),
+                at(3).read_unaligned(),
+                at(4).read_unaligned(),
+                at(5).read_unaligned(),
+                at(6).read_unaligned(),
+                at(7).read_unaligned(),
+            ));
+        }
         I8(_mm256_i32gather_epi32::<SCALE>(p, idx.0))
     }
     #[inline(always)]
     unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: I8) -> F8 {
+        if LOADS {
+            return F8(_mm256_castsi256_ps(
+                Self::gather::<SCALE>(p as *const i32, idx).0,
+            ));
+        }
         F8(_mm256_i32gather_ps::<SCALE>(p, idx.0))
     }
     #[inline(always)]
@@ -262,6 +283,34 @@ impl Simd for W8 {
     }
     #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I8) -> [F8; 4] {
+        if LOADS {
+            // Each lane's row in one 16-byte load, then transposed.
+            let ix = Self::store_i(i4);
+            let r: [__m128; 8] = [
+                _mm_loadu_ps(table.add(ix[0] as usize)),
+                _mm_loadu_ps(table.add(ix[1] as usize)),
+                _mm_loadu_ps(table.add(ix[2] as usize)),
+                _mm_loadu_ps(table.add(ix[3] as usize)),
+                _mm_loadu_ps(table.add(ix[4] as usize)),
+                _mm_loadu_ps(table.add(ix[5] as usize)),
+                _mm_loadu_ps(table.add(ix[6] as usize)),
+                _mm_loadu_ps(table.add(ix[7] as usize)),
+            ];
+            let a0 = _mm256_set_m128(r[4], r[0]);
+            let a1 = _mm256_set_m128(r[5], r[1]);
+            let a2 = _mm256_set_m128(r[6], r[2]);
+            let a3 = _mm256_set_m128(r[7], r[3]);
+            let t0 = _mm256_unpacklo_ps(a0, a1);
+            let t1 = _mm256_unpacklo_ps(a2, a3);
+            let t2 = _mm256_unpackhi_ps(a0, a1);
+            let t3 = _mm256_unpackhi_ps(a2, a3);
+            return [
+                F8(_mm256_shuffle_ps::<0x44>(t0, t1)),
+                F8(_mm256_shuffle_ps::<0xEE>(t0, t1)),
+                F8(_mm256_shuffle_ps::<0x44>(t2, t3)),
+                F8(_mm256_shuffle_ps::<0xEE>(t2, t3)),
+            ];
+        }
         // A row is two 64-bit halves, (r, g) and (b, a): four gathers of
         // four 64-bit elements (16 loads), then per channel a shuffle of
         // the evens or odds of both and a cross-lane reorder.
