@@ -76,83 +76,61 @@ mod vector {
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
 
-    /// The `threshold` lanes' loop at AVX2: two packets of eight.
-    ///
-    /// # Safety
-    /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a u8
-    /// grid, `pk.z_pairs` is its z-paired copy; `pk.thr` is set.
-    #[target_feature(enable = "avx2,fma")]
-    pub(in crate::render::packet) unsafe fn thr_avx2<
-        T: Voxel,
-        R: Runs<T>,
-        const SKIP: bool,
-        const SHADE: bool,
-    >(
-        pk: &Packets<'_, T, R>,
-        lanes: &[Option<Lane>; LANES],
-        st: &mut State<'_>,
-    ) {
-        halves::<false, T, R, SKIP, SHADE>(pk, lanes, st)
-    }
-
-    /// [`thr_avx2`] fetching by scalar loads.
-    ///
-    /// # Safety
-    /// As [`thr_avx2`].
-    #[target_feature(enable = "avx2,fma")]
-    pub(in crate::render::packet) unsafe fn thr_avx2_loads<
-        T: Voxel,
-        R: Runs<T>,
-        const SKIP: bool,
-        const SHADE: bool,
-    >(
-        pk: &Packets<'_, T, R>,
-        lanes: &[Option<Lane>; LANES],
-        st: &mut State<'_>,
-    ) {
-        halves::<true, T, R, SKIP, SHADE>(pk, lanes, st)
-    }
-
-    /// The sixteen lanes as two packets of eight.
-    ///
-    /// # Safety
-    /// As [`thr_avx2`].
-    #[inline(always)]
-    unsafe fn halves<
-        const LOADS: bool,
-        T: Voxel,
-        R: Runs<T>,
-        const SKIP: bool,
-        const SHADE: bool,
-    >(
-        pk: &Packets<'_, T, R>,
-        lanes: &[Option<Lane>; LANES],
-        st: &mut State<'_>,
-    ) {
-        for h in [0..LANES / 2, LANES / 2..LANES] {
-            if lanes[h.clone()].iter().any(Option::is_some) {
-                march::<W8<LOADS>, T, R, SKIP, SHADE>(pk, &lanes[h.clone()], &mut st.part(h));
+    /// One entry point of `threshold`'s loop, as `vector::entry!` makes
+    /// the packets': compiled for `$features`, the loop of width `$w`.
+    macro_rules! entry {
+        ($(#[$doc:meta])* $name:ident, $features:literal, $w:ty) => {
+            $(#[$doc])*
+            #[target_feature(enable = $features)]
+            pub(in crate::render::packet) unsafe fn $name<
+                T: Voxel,
+                R: Runs<T>,
+                const SKIP: bool,
+                const SHADE: bool,
+            >(
+                pk: &Packets<'_, T, R>,
+                lanes: &[Option<Lane>; LANES],
+                st: &mut State<'_>,
+            ) {
+                let n = <$w as Simd>::N;
+                for h in (0..LANES).step_by(n).map(|a| a..a + n) {
+                    if lanes[h.clone()].iter().any(Option::is_some) {
+                        march::<$w, T, R, SKIP, SHADE>(pk, &lanes[h.clone()], &mut st.part(h));
+                    }
+                }
             }
-        }
+        };
     }
 
-    /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
-    ///
-    /// # Safety
-    /// As [`thr_avx2`], and AVX-512 F present.
-    #[target_feature(enable = "avx2,fma,avx512f")]
-    pub(in crate::render::packet) unsafe fn thr_avx512<
-        T: Voxel,
-        R: Runs<T>,
-        const SKIP: bool,
-        const SHADE: bool,
-    >(
-        pk: &Packets<'_, T, R>,
-        lanes: &[Option<Lane>; LANES],
-        st: &mut State<'_>,
-    ) {
-        march::<W16, T, R, SKIP, SHADE>(pk, lanes, st)
-    }
+    entry!(
+        /// The `threshold` lanes' loop at AVX2: two packets of eight,
+        /// fetching by the gather instructions.
+        ///
+        /// # Safety
+        /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for
+        /// a u8 grid, `pk.z_pairs` is its z-paired copy; `pk.thr` is set.
+        thr_avx2,
+        "avx2,fma",
+        W8<false>
+    );
+    entry!(
+        /// [`thr_avx2`] fetching by scalar loads.
+        ///
+        /// # Safety
+        /// As [`thr_avx2`].
+        thr_avx2_loads,
+        "avx2,fma",
+        W8<true>
+    );
+    entry!(
+        /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
+        ///
+        /// # Safety
+        /// As [`thr_avx2`], and AVX-512 F present.
+        thr_avx512,
+        "avx2,fma,avx512f",
+        W16
+    );
 
     /// The loop of both widths: lane by lane `march::Threshold::march` with
     /// front-to-back compositing, from the colour and opacity in `st.acc`.

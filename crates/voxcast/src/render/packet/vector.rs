@@ -458,103 +458,77 @@ unsafe fn queue_slots<S: Simd, T: Voxel>(
     }
 }
 
-/// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
-/// colour and opacity to `st.acc`, its samples, shaded samples and
-/// interpolations to `st.count`, and leaves `st.alive` false for lanes
-/// that terminated early. `SKIP`: empty-space skipping (`pk.empty`);
-/// `SHADE`: Blinn–Phong (`pk.shading`); `IMP`: `importance`'s walks
-/// (`st.imp`); `R::ON`: a step-per-block march's runs (`st.runs`), with
-/// S0's grouped reuse where `GROUPED`. The sixteen lanes run as two
-/// packets of eight, one after the other.
-///
-/// # Safety
-/// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a u8
-/// grid, `pk.z_pairs` is its z-paired copy.
-#[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn march_avx2<
-    T: Voxel,
-    R: Runs<T>,
-    const SKIP: bool,
-    const SHADE: bool,
-    const IMP: bool,
-    const GROUPED: bool,
->(
-    pk: &Packets<'_, T, R>,
-    lanes: &[Option<Lane>; LANES],
-    st: &mut State<'_>,
-) {
-    halves::<false, T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
-}
-
-/// [`march_avx2`] fetching by scalar loads ([`W8`]`<true>`).
-///
-/// # Safety
-/// As [`march_avx2`].
-#[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn march_avx2_loads<
-    T: Voxel,
-    R: Runs<T>,
-    const SKIP: bool,
-    const SHADE: bool,
-    const IMP: bool,
-    const GROUPED: bool,
->(
-    pk: &Packets<'_, T, R>,
-    lanes: &[Option<Lane>; LANES],
-    st: &mut State<'_>,
-) {
-    halves::<true, T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
-}
-
-/// The sixteen lanes as two packets of eight, one after the other.
-///
-/// # Safety
-/// As [`march_avx2`].
-#[inline(always)]
-unsafe fn halves<
-    const LOADS: bool,
-    T: Voxel,
-    R: Runs<T>,
-    const SKIP: bool,
-    const SHADE: bool,
-    const IMP: bool,
-    const GROUPED: bool,
->(
-    pk: &Packets<'_, T, R>,
-    lanes: &[Option<Lane>; LANES],
-    st: &mut State<'_>,
-) {
-    for h in [0..LANES / 2, LANES / 2..LANES] {
-        if lanes[h.clone()].iter().any(Option::is_some) {
-            march::<W8<LOADS>, T, R, SKIP, SHADE, IMP, GROUPED>(
-                pk,
-                &lanes[h.clone()],
-                &mut st.part(h),
-            );
+/// One entry point of the loop: a function compiled for `$features`
+/// with the loop of width `$w` inlined into it (two packets of eight at
+/// AVX2), for the runs, skipping, shading, `importance` and grouping its
+/// const parameters pick.
+macro_rules! entry {
+    ($(#[$doc:meta])* $name:ident, $features:literal, $w:ty) => {
+        $(#[$doc])*
+        #[target_feature(enable = $features)]
+        pub(super) unsafe fn $name<
+            T: Voxel,
+            R: Runs<T>,
+            const SKIP: bool,
+            const SHADE: bool,
+            const IMP: bool,
+            const GROUPED: bool,
+        >(
+            pk: &Packets<'_, T, R>,
+            lanes: &[Option<Lane>; LANES],
+            st: &mut State<'_>,
+        ) {
+            let n = <$w as Simd>::N;
+            for h in (0..LANES).step_by(n).map(|a| a..a + n) {
+                if lanes[h.clone()].iter().any(Option::is_some) {
+                    march::<$w, T, R, SKIP, SHADE, IMP, GROUPED>(
+                        pk,
+                        &lanes[h.clone()],
+                        &mut st.part(h),
+                    );
+                }
+            }
         }
-    }
+    };
 }
 
-/// [`march_avx2`] in sixteen lanes of AVX-512 registers, lane masks in
-/// mask registers.
-///
-/// # Safety
-/// As [`march_avx2`], and AVX-512 F present.
-#[target_feature(enable = "avx2,fma,avx512f")]
-pub(super) unsafe fn march_avx512<
-    T: Voxel,
-    R: Runs<T>,
-    const SKIP: bool,
-    const SHADE: bool,
-    const IMP: bool,
-    const GROUPED: bool,
->(
-    pk: &Packets<'_, T, R>,
-    lanes: &[Option<Lane>; LANES],
-    st: &mut State<'_>,
-) {
-    march::<W16, T, R, SKIP, SHADE, IMP, GROUPED>(pk, lanes, st)
-}
+entry!(
+    /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
+    /// colour and opacity to `st.acc`, its samples, shaded samples and
+    /// interpolations to `st.count`, and leaves `st.alive` false for lanes
+    /// that terminated early. `SKIP`: empty-space skipping (`pk.empty`);
+    /// `SHADE`: Blinn–Phong (`pk.shading`); `IMP`: `importance`'s walks
+    /// (`st.imp`); `R::ON`: a step-per-block march's runs (`st.runs`), with
+    /// S0's grouped reuse where `GROUPED`. The sixteen lanes run as two
+    /// packets of eight, one after the other, fetching by the gather
+    /// instructions.
+    ///
+    /// # Safety
+    /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a
+    /// u8 grid, `pk.z_pairs` is its z-paired copy.
+    march_avx2,
+    "avx2,fma",
+    W8<false>
+);
+entry!(
+    /// [`march_avx2`] fetching by scalar loads ([`W8`]`<true>`).
+    ///
+    /// # Safety
+    /// As [`march_avx2`].
+    march_avx2_loads,
+    "avx2,fma",
+    W8<true>
+);
+entry!(
+    /// [`march_avx2`] in sixteen lanes of AVX-512 registers, lane masks in
+    /// mask registers.
+    ///
+    /// # Safety
+    /// As [`march_avx2`], and AVX-512 F present.
+    march_avx512,
+    "avx2,fma,avx512f",
+    W16
+);
 
 /// The loop of both widths, inlined into each; `lanes` and `st` hold
 /// `S::N` lanes.
