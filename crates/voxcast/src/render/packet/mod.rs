@@ -75,7 +75,7 @@ pub enum Level {
     /// rays as two packets of eight), fetching by the AVX2 gathers.
     Avx2,
     /// The same, fetching lane by lane with scalar loads: faster where the
-    /// gathers are slow (AMD before Zen 4, [`gathers_by_loads`]).
+    /// gathers are slow (AMD before Zen 4: `packet::gathers_by_loads`).
     #[serde(rename = "avx2-loads")]
     Avx2Loads,
     /// AVX-512 F: sixteen lanes in 512-bit registers, lane masks in mask
