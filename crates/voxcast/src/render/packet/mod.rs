@@ -45,6 +45,30 @@ use super::sample::{evaluate_premul, Flat, Phong};
 use super::shading::BlinnPhong;
 use super::stats::RenderStats;
 use super::surface::{self, SurfaceCtx};
+/// One entry point of a packets' loop (`vector`'s, `threshold`'s): a
+/// function compiled for `$features` with the loop `$march` of width `$w`
+/// inlined into it, the sixteen lanes as packets of `$w`'s width (two of
+/// eight at AVX2), for the const choices `$c` it passes on.
+#[cfg(target_arch = "x86_64")]
+macro_rules! entry {
+    ($(#[$doc:meta])* $vis:vis $name:ident, $features:literal, $w:ty, $march:ident<$($c:ident),*>) => {
+        $(#[$doc])*
+        #[target_feature(enable = $features)]
+        $vis unsafe fn $name<T: Voxel, R: Runs<T>, $(const $c: bool),*>(
+            pk: &Packets<'_, T, R>,
+            lanes: &[Option<Lane>; LANES],
+            st: &mut State<'_>,
+        ) {
+            let n = <$w as Simd>::N;
+            for h in (0..LANES).step_by(n).map(|a| a..a + n) {
+                if lanes[h.clone()].iter().any(Option::is_some) {
+                    $march::<$w, T, R, $($c),*>(pk, &lanes[h.clone()], &mut st.part(h));
+                }
+            }
+        }
+    };
+}
+
 mod distance;
 mod importance;
 mod lod;

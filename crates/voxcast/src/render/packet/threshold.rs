@@ -76,32 +76,6 @@ mod vector {
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
 
-    /// One entry point of `threshold`'s loop, as `vector::entry!` makes
-    /// the packets': compiled for `$features`, the loop of width `$w`.
-    macro_rules! entry {
-        ($(#[$doc:meta])* $name:ident, $features:literal, $w:ty) => {
-            $(#[$doc])*
-            #[target_feature(enable = $features)]
-            pub(in crate::render::packet) unsafe fn $name<
-                T: Voxel,
-                R: Runs<T>,
-                const SKIP: bool,
-                const SHADE: bool,
-            >(
-                pk: &Packets<'_, T, R>,
-                lanes: &[Option<Lane>; LANES],
-                st: &mut State<'_>,
-            ) {
-                let n = <$w as Simd>::N;
-                for h in (0..LANES).step_by(n).map(|a| a..a + n) {
-                    if lanes[h.clone()].iter().any(Option::is_some) {
-                        march::<$w, T, R, SKIP, SHADE>(pk, &lanes[h.clone()], &mut st.part(h));
-                    }
-                }
-            }
-        };
-    }
-
     entry!(
         /// The `threshold` lanes' loop at AVX2: two packets of eight,
         /// fetching by the gather instructions.
@@ -109,27 +83,30 @@ mod vector {
         /// # Safety
         /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for
         /// a u8 grid, `pk.z_pairs` is its z-paired copy; `pk.thr` is set.
-        thr_avx2,
+        pub(in crate::render::packet) thr_avx2,
         "avx2,fma",
-        W8<false>
+        W8<false>,
+        march<SKIP, SHADE>
     );
     entry!(
         /// [`thr_avx2`] fetching by scalar loads.
         ///
         /// # Safety
         /// As [`thr_avx2`].
-        thr_avx2_loads,
+        pub(in crate::render::packet) thr_avx2_loads,
         "avx2,fma",
-        W8<true>
+        W8<true>,
+        march<SKIP, SHADE>
     );
     entry!(
         /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
         ///
         /// # Safety
         /// As [`thr_avx2`], and AVX-512 F present.
-        thr_avx512,
+        pub(in crate::render::packet) thr_avx512,
         "avx2,fma,avx512f",
-        W16
+        W16,
+        march<SKIP, SHADE>
     );
 
     /// The loop of both widths: lane by lane `march::Threshold::march` with

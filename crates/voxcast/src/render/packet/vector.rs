@@ -458,40 +458,6 @@ unsafe fn queue_slots<S: Simd, T: Voxel>(
     }
 }
 
-/// One entry point of the loop: a function compiled for `$features`
-/// with the loop of width `$w` inlined into it (two packets of eight at
-/// AVX2), for the runs, skipping, shading, `importance` and grouping its
-/// const parameters pick.
-macro_rules! entry {
-    ($(#[$doc:meta])* $name:ident, $features:literal, $w:ty) => {
-        $(#[$doc])*
-        #[target_feature(enable = $features)]
-        pub(super) unsafe fn $name<
-            T: Voxel,
-            R: Runs<T>,
-            const SKIP: bool,
-            const SHADE: bool,
-            const IMP: bool,
-            const GROUPED: bool,
-        >(
-            pk: &Packets<'_, T, R>,
-            lanes: &[Option<Lane>; LANES],
-            st: &mut State<'_>,
-        ) {
-            let n = <$w as Simd>::N;
-            for h in (0..LANES).step_by(n).map(|a| a..a + n) {
-                if lanes[h.clone()].iter().any(Option::is_some) {
-                    march::<$w, T, R, SKIP, SHADE, IMP, GROUPED>(
-                        pk,
-                        &lanes[h.clone()],
-                        &mut st.part(h),
-                    );
-                }
-            }
-        }
-    };
-}
-
 entry!(
     /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
     /// colour and opacity to `st.acc`, its samples, shaded samples and
@@ -506,18 +472,20 @@ entry!(
     /// # Safety
     /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a
     /// u8 grid, `pk.z_pairs` is its z-paired copy.
-    march_avx2,
+    pub(super) march_avx2,
     "avx2,fma",
-    W8<false>
+    W8<false>,
+    march<SKIP, SHADE, IMP, GROUPED>
 );
 entry!(
     /// [`march_avx2`] fetching by scalar loads ([`W8`]`<true>`).
     ///
     /// # Safety
     /// As [`march_avx2`].
-    march_avx2_loads,
+    pub(super) march_avx2_loads,
     "avx2,fma",
-    W8<true>
+    W8<true>,
+    march<SKIP, SHADE, IMP, GROUPED>
 );
 entry!(
     /// [`march_avx2`] in sixteen lanes of AVX-512 registers, lane masks in
@@ -525,9 +493,10 @@ entry!(
     ///
     /// # Safety
     /// As [`march_avx2`], and AVX-512 F present.
-    march_avx512,
+    pub(super) march_avx512,
     "avx2,fma,avx512f",
-    W16
+    W16,
+    march<SKIP, SHADE, IMP, GROUPED>
 );
 
 /// The loop of both widths, inlined into each; `lanes` and `st` hold
