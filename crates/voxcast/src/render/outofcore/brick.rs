@@ -404,6 +404,9 @@ fn march_rows<T: Stored>(
         empty: a.cells.map(|c| c.0),
         shading: a.shading,
         z_pairs: &z_pairs,
+        // f32 bricks are fetched from the brick itself: a z-paired copy
+        // would be made per brick and pass.
+        z_pairs_f32: &[],
         level,
         imp: None,
         runs: None,

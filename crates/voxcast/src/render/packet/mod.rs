@@ -188,6 +188,35 @@ pub(super) fn z_pairs(v: &[u8], dims: [usize; 3]) -> Vec<u16> {
     out
 }
 
+/// The largest f32 z-paired copy made (2 GiB, a 640³ volume): larger
+/// volumes are rendered from the grid itself rather than tripling their
+/// memory.
+pub(in crate::render) const Z_PAIRS_F32_MAX: usize = 2 << 30;
+
+/// The f32 layout the packets fetch from: per voxel `v(x, y, z)` and
+/// `v(x, y, z + 1)` side by side (the last slice pairs with itself), so a
+/// row's four corners `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)`
+/// lie in 16 contiguous bytes: a trilinear fetch reads two rows, two
+/// cache lines, where the grid itself spreads its eight corners over four
+/// (two slices, two rows each), and four 64-bit gathers instead of eight
+/// 32-bit ones. Twice the volume's bytes, built once per renderer, and
+/// only up to [`Z_PAIRS_F32_MAX`] bytes (empty past it: the packets then
+/// fetch from the grid).
+pub(in crate::render) fn z_pairs_f32(v: &[f32], dims: [usize; 3]) -> Vec<[f32; 2]> {
+    if std::mem::size_of_val(v) * 2 > Z_PAIRS_F32_MAX {
+        return Vec::new();
+    }
+    let slice = dims[0] * dims[1];
+    let last = slice * (dims[2] - 1);
+    let mut out = Vec::with_capacity(v.len());
+    huge_pages(&mut out);
+    out.extend(v.iter().enumerate().map(|(i, &a)| {
+        let b = if i < last { v[i + slice] } else { a };
+        [a, b]
+    }));
+    out
+}
+
 /// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
 /// the lanes' fetches land on scattered slices, and with 4 KiB pages a
 /// volume of tens of MiB misses the TLB on most of them. A hint only (it
@@ -232,6 +261,8 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub shading: Option<BlinnPhong>,
     /// For u8 grids, the grid as [`z_pairs`] (empty for other types).
     pub z_pairs: &'a [u16],
+    /// For f32 grids, the grid as [`z_pairs_f32`] (empty for other types).
+    pub z_pairs_f32: &'a [[f32; 2]],
     /// The instruction set ([`level`]).
     pub level: Level,
     /// `importance`'s pdf and levels, when the packets march it.

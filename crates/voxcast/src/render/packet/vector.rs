@@ -171,6 +171,10 @@ pub(super) struct Vol<S: Simd> {
     data: *const u8,
     /// u8 grids: the z-paired copy (`super::z_pairs`).
     zp: *const u8,
+    /// f32 grids: the z-paired copy (`super::z_pairs_f32`), where the
+    /// renderer made one (`zpf_ok`).
+    zpf: *const i64,
+    zpf_ok: bool,
     len_bytes: i32,
     max: [S::F; 3],
     last: [S::I; 3],
@@ -202,6 +206,8 @@ impl<S: Simd> Vol<S> {
         Vol {
             data: data.as_ptr() as *const u8,
             zp: pk.z_pairs.as_ptr() as *const u8,
+            zpf: pk.z_pairs_f32.as_ptr() as *const i64,
+            zpf_ok: !pk.z_pairs_f32.is_empty(),
             len_bytes: std::mem::size_of_val(data) as i32,
             max: [S::splat(max.x), S::splat(max.y), S::splat(max.z)],
             last: [
@@ -263,6 +269,15 @@ impl<S: Simd> Vol<S> {
         if T::KIND == VoxelKind::U8 {
             // Two gathers: rows y and y + 1 of the z-paired copy.
             cell_of::<S>(self.quad(base), self.quad(base + self.sy))
+        } else if T::KIND == VoxelKind::F32 && self.zpf_ok {
+            // Rows y and y + 1 of the z-paired copy: a 64-bit gather at
+            // x and one at x + 1 each.
+            let (one, sy) = (S::splat_i(1), self.sy);
+            let (c000, c001) = self.z_pair(base);
+            let (c100, c101) = self.z_pair(base + one);
+            let (c010, c011) = self.z_pair(base + sy);
+            let (c110, c111) = self.z_pair(base + sy + one);
+            [c000, c100, c010, c110, c001, c101, c011, c111]
         } else {
             let (d, n) = (self.data, self.len_bytes);
             let (c000, c100) = pair::<S, T>(d, n, base);
@@ -271,6 +286,14 @@ impl<S: Simd> Vol<S> {
             let (c011, c111) = pair::<S, T>(d, n, base + self.sy + self.sz);
             [c000, c100, c010, c110, c001, c101, c011, c111]
         }
+    }
+
+    /// f32 grids: voxels `(x, z)` and `(x, z + 1)` at element `i` of the
+    /// z-paired copy, in one 64-bit gather.
+    #[inline(always)]
+    unsafe fn z_pair(&self, i: S::I) -> (S::F, S::F) {
+        let (lo, hi) = S::gather_pair::<8>(self.zpf, i);
+        (S::of_bits(lo), S::of_bits(hi))
     }
 
     /// u8 grids: the z-paired copy's 64 bits at element `i − 1`, as two
