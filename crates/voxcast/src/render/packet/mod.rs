@@ -177,13 +177,20 @@ pub(super) fn fits<T: Voxel>(g: &crate::volume::Grid<'_, T>) -> bool {
 /// trilinear fetch — two gathers per fetch instead of four. Twice the
 /// volume's bytes, built once per renderer.
 pub(super) fn z_pairs(v: &[u8], dims: [usize; 3]) -> Vec<u16> {
+    paired(v, dims, |a, b| a as u16 | (b as u16) << 8)
+}
+
+/// Per voxel of `v` (`dims`, x fastest), `pack` of `v(x, y, z)` and
+/// `v(x, y, z + 1)` (the last slice paired with itself), on 2 MiB pages
+/// where Linux allows.
+fn paired<T: Copy, P>(v: &[T], dims: [usize; 3], pack: impl Fn(T, T) -> P) -> Vec<P> {
     let slice = dims[0] * dims[1];
     let last = slice * (dims[2] - 1);
     let mut out = Vec::with_capacity(v.len());
     huge_pages(&mut out);
     out.extend(v.iter().enumerate().map(|(i, &a)| {
         let b = if i < last { v[i + slice] } else { a };
-        a as u16 | (b as u16) << 8
+        pack(a, b)
     }));
     out
 }
@@ -206,15 +213,7 @@ pub(in crate::render) fn z_pairs_f32(v: &[f32], dims: [usize; 3]) -> Vec<[f32; 2
     if std::mem::size_of_val(v) * 2 > Z_PAIRS_F32_MAX {
         return Vec::new();
     }
-    let slice = dims[0] * dims[1];
-    let last = slice * (dims[2] - 1);
-    let mut out = Vec::with_capacity(v.len());
-    huge_pages(&mut out);
-    out.extend(v.iter().enumerate().map(|(i, &a)| {
-        let b = if i < last { v[i + slice] } else { a };
-        [a, b]
-    }));
-    out
+    paired(v, dims, |a, b| [a, b])
 }
 
 /// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
