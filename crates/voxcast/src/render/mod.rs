@@ -76,9 +76,7 @@ pub struct Renderer<'v> {
     geometry: Option<Arc<crate::geometry::Geometry>>,
     /// For u8 volumes, the SIMD packets' layout (see [`packet::z_pairs`]),
     /// built on the first render that uses it.
-    z_pairs: std::sync::OnceLock<Vec<u16>>,
-    /// For f32 volumes, the same ([`packet::z_pairs_f32`]).
-    z_pairs_f32: std::sync::OnceLock<Vec<[f32; 2]>>,
+    z_pairs: std::sync::OnceLock<packet::ZPairs>,
 }
 
 /// What a block size derives from the volume: the block grid, and the
@@ -169,7 +167,6 @@ impl<'v> Renderer<'v> {
             window,
             derived: std::sync::Mutex::new(Vec::new()),
             z_pairs: std::sync::OnceLock::new(),
-            z_pairs_f32: std::sync::OnceLock::new(),
             geometry: None,
         };
         r.derived(blocks::DEFAULT_BLOCK);
@@ -316,7 +313,6 @@ impl<'v> Renderer<'v> {
         });
         let job = Job {
             z_pairs: &self.z_pairs,
-            z_pairs_f32: &self.z_pairs_f32,
             pdf: pdf.as_slice(),
             volume,
             lut,
@@ -354,9 +350,7 @@ fn over_background(c: glam::Vec4, bg: Vec3) -> [f32; 4] {
 struct Job<'a> {
     /// The renderer's u8 layout for the packets, built by the first
     /// render that runs them on a u8 volume.
-    z_pairs: &'a std::sync::OnceLock<Vec<u16>>,
-    /// The same for f32 volumes ([`packet::z_pairs_f32`]).
-    z_pairs_f32: &'a std::sync::OnceLock<Vec<[f32; 2]>>,
+    z_pairs: &'a std::sync::OnceLock<packet::ZPairs>,
     pdf: &'a [stochastic::PdfBlock],
     volume: &'a Volume,
     blocks: &'a BlockGrid,
@@ -725,18 +719,9 @@ impl Job<'_> {
         {
             return None;
         }
-        let z_pairs = match self.volume.data() {
-            crate::volume::VoxelData::U8(v) => self
-                .z_pairs
-                .get_or_init(|| packet::z_pairs(v, self.volume.dims())),
-            _ => &[][..],
-        };
-        let z_pairs_f32 = match self.volume.data() {
-            crate::volume::VoxelData::F32(v) => self
-                .z_pairs_f32
-                .get_or_init(|| packet::z_pairs_f32(v, self.volume.dims())),
-            _ => &[][..],
-        };
+        let z_pairs = self
+            .z_pairs
+            .get_or_init(|| packet::ZPairs::of(self.volume.data(), self.volume.dims()));
         // `importance` skips nothing (its pdf has no mass in empty blocks);
         // a step-per-block march skips in its walk.
         let empty = (f.skip_empty && imp.is_none() && runs.is_none())
@@ -751,7 +736,6 @@ impl Job<'_> {
             empty: empty.as_ref().map(|e| e.as_slice()),
             shading,
             z_pairs,
-            z_pairs_f32,
             level,
             imp,
             runs,

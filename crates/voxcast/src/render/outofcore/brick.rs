@@ -8,7 +8,7 @@ use super::march::{self, BrickFrame, Px, RowCount};
 use super::plan::LevelGeo;
 use crate::error::{Error, Result};
 use crate::render::composite::Weights;
-use crate::render::packet;
+use crate::render::packet::{self, ZPairs};
 use crate::render::ray::Frame;
 use crate::render::shading::BlinnPhong;
 use crate::transfer::Lut;
@@ -56,8 +56,8 @@ pub(super) enum BrickBuf {
 trait Stored: Voxel + Default {
     fn of(d: &VoxelData) -> &[Self];
     fn from_f32(v: f32) -> Self;
-    /// The packets' z-paired copy of a u8 brick (empty for other types).
-    fn z_pairs(data: &[Self], dims: [usize; 3]) -> Vec<u16>;
+    /// The packets' z-paired copy of a brick ([`ZPairs`]).
+    fn z_pairs(data: &[Self], dims: [usize; 3]) -> ZPairs;
 }
 
 macro_rules! stored {
@@ -72,16 +72,16 @@ macro_rules! stored {
             fn from_f32(v: f32) -> $t {
                 v as $t
             }
-            fn z_pairs(data: &[$t], dims: [usize; 3]) -> Vec<u16> {
+            fn z_pairs(data: &[$t], dims: [usize; 3]) -> ZPairs {
                 $zp(data, dims)
             }
         }
     };
 }
-stored!(u8, U8, crate::render::packet::z_pairs);
-stored!(u16, U16, |_, _| Vec::new());
-stored!(i16, I16, |_, _| Vec::new());
-stored!(f32, F32, |_, _| Vec::new());
+stored!(u8, U8, |v, d| ZPairs::U8(packet::z_pairs(v, d)));
+stored!(u16, U16, |_, _| ZPairs::None);
+stored!(i16, I16, |_, _| ZPairs::None);
+stored!(f32, F32, |v, d| ZPairs::F32(packet::z_pairs_f32(v, d)));
 
 impl BrickBuf {
     pub(super) fn new(ty: ScalarType) -> BrickBuf {
@@ -404,9 +404,6 @@ fn march_rows<T: Stored>(
         empty: a.cells.map(|c| c.0),
         shading: a.shading,
         z_pairs: &z_pairs,
-        // f32 bricks are fetched from the brick itself: a z-paired copy
-        // would be made per brick and pass.
-        z_pairs_f32: &[],
         level,
         imp: None,
         runs: None,

@@ -78,7 +78,7 @@ mod threshold;
 
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
-use crate::volume::Voxel;
+use crate::volume::{Voxel, VoxelData, VoxelKind};
 pub(in crate::render) use distance::{distances_in_place, skip_distances};
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
@@ -195,25 +195,51 @@ fn paired<T: Copy, P>(v: &[T], dims: [usize; 3], pack: impl Fn(T, T) -> P) -> Ve
     out
 }
 
-/// The largest f32 z-paired copy made (2 GiB, a 640³ volume): larger
-/// volumes are rendered from the grid itself rather than tripling their
-/// memory.
-pub(in crate::render) const Z_PAIRS_F32_MAX: usize = 2 << 30;
-
 /// The f32 layout the packets fetch from: per voxel `v(x, y, z)` and
 /// `v(x, y, z + 1)` side by side (the last slice pairs with itself), so a
 /// row's four corners `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)`
 /// lie in 16 contiguous bytes: a trilinear fetch reads two rows, two
 /// cache lines, where the grid itself spreads its eight corners over four
 /// (two slices, two rows each), and four 64-bit gathers instead of eight
-/// 32-bit ones. Twice the volume's bytes, built once per renderer, and
-/// only up to [`Z_PAIRS_F32_MAX`] bytes (empty past it: the packets then
-/// fetch from the grid).
+/// 32-bit ones. Twice the volume's bytes; [`fits`] keeps the volumes the
+/// packets march below 1 GiB, so the copy stays below 2 GiB.
 pub(in crate::render) fn z_pairs_f32(v: &[f32], dims: [usize; 3]) -> Vec<[f32; 2]> {
-    if std::mem::size_of_val(v) * 2 > Z_PAIRS_F32_MAX {
-        return Vec::new();
-    }
     paired(v, dims, |a, b| [a, b])
+}
+
+/// The z-paired copy of a volume the packets fetch from, by voxel type
+/// (u16 and i16 volumes are fetched from the grid itself). Built once per
+/// renderer, or per brick out of core.
+pub(in crate::render) enum ZPairs {
+    U8(Vec<u16>),
+    F32(Vec<[f32; 2]>),
+    None,
+}
+
+impl ZPairs {
+    /// The copy for `data` of `dims`.
+    pub(in crate::render) fn of(data: &VoxelData, dims: [usize; 3]) -> ZPairs {
+        match data {
+            VoxelData::U8(v) => ZPairs::U8(z_pairs(v, dims)),
+            VoxelData::F32(v) => ZPairs::F32(z_pairs_f32(v, dims)),
+            VoxelData::U16(_) | VoxelData::I16(_) => ZPairs::None,
+        }
+    }
+
+    /// The copy's first byte, for voxels of kind `kind`: null where the
+    /// packets fetch that kind from the grid.
+    ///
+    /// # Panics
+    /// Where the copy is of another kind than `kind` (a renderer's bug:
+    /// the lanes would read it as the wrong type).
+    pub(super) fn ptr(&self, kind: VoxelKind) -> *const u8 {
+        match (self, kind) {
+            (ZPairs::U8(v), VoxelKind::U8) => v.as_ptr() as *const u8,
+            (ZPairs::F32(v), VoxelKind::F32) => v.as_ptr() as *const u8,
+            (ZPairs::None, VoxelKind::U16 | VoxelKind::I16) => std::ptr::null(),
+            _ => panic!("the packets' z-paired copy is not of the grid's voxel type"),
+        }
+    }
 }
 
 /// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
@@ -258,10 +284,8 @@ pub(super) struct Packets<'a, T, R = ()> {
     /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
     /// flat colour.
     pub shading: Option<BlinnPhong>,
-    /// For u8 grids, the grid as [`z_pairs`] (empty for other types).
-    pub z_pairs: &'a [u16],
-    /// For f32 grids, the grid as [`z_pairs_f32`] (empty for other types).
-    pub z_pairs_f32: &'a [[f32; 2]],
+    /// The grid's z-paired copy ([`ZPairs`]), of the grid's voxel type.
+    pub z_pairs: &'a ZPairs,
     /// The instruction set ([`level`]).
     pub level: Level,
     /// `importance`'s pdf and levels, when the packets march it.

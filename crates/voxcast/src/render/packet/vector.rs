@@ -169,12 +169,9 @@ impl<S: Simd> Skips<S> {
 /// The grid as the lanes read it (see `Grid::sample`).
 pub(super) struct Vol<S: Simd> {
     data: *const u8,
-    /// u8 grids: the z-paired copy (`super::z_pairs`).
+    /// u8 and f32 grids: the z-paired copy (`super::ZPairs`; null for
+    /// other types).
     zp: *const u8,
-    /// f32 grids: the z-paired copy (`super::z_pairs_f32`), where the
-    /// renderer made one (`zpf_ok`).
-    zpf: *const i64,
-    zpf_ok: bool,
     len_bytes: i32,
     max: [S::F; 3],
     last: [S::I; 3],
@@ -205,9 +202,7 @@ impl<S: Simd> Vol<S> {
         let dims = f.grid.dims();
         Vol {
             data: data.as_ptr() as *const u8,
-            zp: pk.z_pairs.as_ptr() as *const u8,
-            zpf: pk.z_pairs_f32.as_ptr() as *const i64,
-            zpf_ok: !pk.z_pairs_f32.is_empty(),
+            zp: pk.z_pairs.ptr(T::KIND),
             len_bytes: std::mem::size_of_val(data) as i32,
             max: [S::splat(max.x), S::splat(max.y), S::splat(max.z)],
             last: [
@@ -269,7 +264,7 @@ impl<S: Simd> Vol<S> {
         if T::KIND == VoxelKind::U8 {
             // Two gathers: rows y and y + 1 of the z-paired copy.
             cell_of::<S>(self.quad(base), self.quad(base + self.sy))
-        } else if T::KIND == VoxelKind::F32 && self.zpf_ok {
+        } else if T::KIND == VoxelKind::F32 {
             // Rows y and y + 1 of the z-paired copy: a 64-bit gather at
             // x and one at x + 1 each.
             let (one, sy) = (S::splat_i(1), self.sy);
@@ -292,7 +287,7 @@ impl<S: Simd> Vol<S> {
     /// z-paired copy, in one 64-bit gather.
     #[inline(always)]
     unsafe fn z_pair(&self, i: S::I) -> (S::F, S::F) {
-        let (lo, hi) = S::gather_pair::<8>(self.zpf, i);
+        let (lo, hi) = S::gather_pair::<8>(self.zp as *const i64, i);
         (S::of_bits(lo), S::of_bits(hi))
     }
 
