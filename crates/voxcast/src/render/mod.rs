@@ -74,8 +74,8 @@ pub struct Renderer<'v> {
     derived: std::sync::Mutex<Vec<(usize, Arc<Derived>)>>,
     /// Opaque geometry rays stop at.
     geometry: Option<Arc<crate::geometry::Geometry>>,
-    /// For u8 volumes, the SIMD packets' layout (see [`packet::z_pairs`]),
-    /// built on the first render that uses it.
+    /// The SIMD packets' z-paired copy of a u8 or f32 volume
+    /// ([`packet::ZPairs`]), built on the first render that uses it.
     z_pairs: std::sync::OnceLock<packet::ZPairs>,
 }
 
@@ -348,8 +348,8 @@ fn over_background(c: glam::Vec4, bg: Vec3) -> [f32; 4] {
 }
 
 struct Job<'a> {
-    /// The renderer's u8 layout for the packets, built by the first
-    /// render that runs them on a u8 volume.
+    /// The renderer's z-paired copy for the packets, built by the first
+    /// render that runs them.
     z_pairs: &'a std::sync::OnceLock<packet::ZPairs>,
     pdf: &'a [stochastic::PdfBlock],
     volume: &'a Volume,

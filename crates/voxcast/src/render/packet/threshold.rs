@@ -81,8 +81,8 @@ mod vector {
         /// fetching by the gather instructions.
         ///
         /// # Safety
-        /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for
-        /// a u8 grid, `pk.z_pairs` is its z-paired copy; `pk.thr` is set.
+        /// AVX2 and FMA present; the grid `fits`; the shading `shades`;
+        /// `pk.z_pairs` is the grid's z-paired copy; `pk.thr` is set.
         pub(in crate::render::packet) thr_avx2,
         "avx2,fma",
         W8<false>,

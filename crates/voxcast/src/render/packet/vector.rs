@@ -488,8 +488,8 @@ entry!(
     /// instructions.
     ///
     /// # Safety
-    /// AVX2 and FMA present; the grid `fits`; the shading `shades`; for a
-    /// u8 grid, `pk.z_pairs` is its z-paired copy.
+    /// AVX2 and FMA present; the grid `fits`; the shading `shades`;
+    /// `pk.z_pairs` is the grid's z-paired copy (`ZPairs::of`).
     pub(super) march_avx2,
     "avx2,fma",
     W8<false>,
