@@ -56,12 +56,10 @@ pub(super) enum BrickBuf {
 trait Stored: Voxel + Default {
     fn of(d: &VoxelData) -> &[Self];
     fn from_f32(v: f32) -> Self;
-    /// The packets' z-paired copy of a brick ([`ZPairs`]).
-    fn z_pairs(data: &[Self], dims: [usize; 3]) -> ZPairs;
 }
 
 macro_rules! stored {
-    ($t:ty, $var:ident, $zp:expr) => {
+    ($t:ty, $var:ident) => {
         impl Stored for $t {
             fn of(d: &VoxelData) -> &[$t] {
                 match d {
@@ -72,16 +70,13 @@ macro_rules! stored {
             fn from_f32(v: f32) -> $t {
                 v as $t
             }
-            fn z_pairs(data: &[$t], dims: [usize; 3]) -> ZPairs {
-                $zp(data, dims)
-            }
         }
     };
 }
-stored!(u8, U8, |v, d| ZPairs::U8(packet::z_pairs(v, d)));
-stored!(u16, U16, |_, _| ZPairs::None);
-stored!(i16, I16, |_, _| ZPairs::None);
-stored!(f32, F32, |v, d| ZPairs::F32(packet::z_pairs_f32(v, d)));
+stored!(u8, U8);
+stored!(u16, U16);
+stored!(i16, I16);
+stored!(f32, F32);
 
 impl BrickBuf {
     pub(super) fn new(ty: ScalarType) -> BrickBuf {
@@ -121,6 +116,9 @@ impl BrickBuf {
         }
     }
 
+    /// Marches the pixels of `rect` through the buffer (`dims`); the
+    /// packets fetch from `z_pairs`, refilled from the buffer (one copy
+    /// reused brick after brick, as the buffer is).
     pub(super) fn march(
         &self,
         a: &FrameArgs<'_>,
@@ -128,12 +126,13 @@ impl BrickBuf {
         px: &mut [Px],
         w: u32,
         rect: [u32; 4],
+        z_pairs: &mut ZPairs,
     ) -> RowCount {
         match self {
-            BrickBuf::U8(v) => march_rows(v, a, dims, px, w, rect),
-            BrickBuf::U16(v) => march_rows(v, a, dims, px, w, rect),
-            BrickBuf::I16(v) => march_rows(v, a, dims, px, w, rect),
-            BrickBuf::F32(v) => march_rows(v, a, dims, px, w, rect),
+            BrickBuf::U8(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
+            BrickBuf::U16(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
+            BrickBuf::I16(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
+            BrickBuf::F32(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
         }
     }
 }
@@ -333,6 +332,7 @@ fn march_rows<T: Stored>(
     px: &mut [Px],
     w: u32,
     [x0, x1, y0, y1]: [u32; 4],
+    z_pairs: &mut ZPairs,
 ) -> RowCount {
     let f = BrickFrame {
         grid: Grid::new(data, dims, a.window[0], a.window[1]),
@@ -374,7 +374,7 @@ fn march_rows<T: Stored>(
     // falls in this brick).
     // The level's step: `stride` base steps.
     let st_l = a.st * a.geo.stride as f32;
-    let z_pairs = T::z_pairs(data, dims);
+    z_pairs.refill(data, dims);
     let frame = Frame {
         grid: &f.grid,
         lut: a.lut,
@@ -403,7 +403,7 @@ fn march_rows<T: Stored>(
         jitter: None,
         empty: a.cells.map(|c| c.0),
         shading: a.shading,
-        z_pairs: &z_pairs,
+        z_pairs,
         level,
         imp: None,
         runs: None,

@@ -170,59 +170,83 @@ pub(super) fn fits<T: Voxel>(g: &crate::volume::Grid<'_, T>) -> bool {
     step[0] == 1 && bytes >= 4 && bytes < (i32::MAX as usize) / 2
 }
 
-/// The u8 layout the packets fetch from: per voxel `v(x, y, z)` and
-/// `v(x, y, z + 1)` in one `u16` (low byte first; the last slice pairs with
-/// itself), so one 32-bit gather at voxel `(x, y, z)` reads the four
-/// corners `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)` of a
-/// trilinear fetch — two gathers per fetch instead of four. Twice the
-/// volume's bytes, built once per renderer.
-pub(super) fn z_pairs(v: &[u8], dims: [usize; 3]) -> Vec<u16> {
-    paired(v, dims, |a, b| a as u16 | (b as u16) << 8)
+/// The z-paired copy of a volume the packets fetch from, by voxel type
+/// (u16 and i16 volumes are fetched from the grid itself). Twice the
+/// volume's bytes, on 2 MiB pages where Linux allows; built once per
+/// renderer, or refilled per brick out of core ([`ZPairs::refill`]).
+pub(in crate::render) enum ZPairs {
+    /// Per voxel `v(x, y, z)` and `v(x, y, z + 1)` in one `u16` (low byte
+    /// first; the last slice pairs with itself), so one 32-bit gather at
+    /// voxel `(x, y, z)` reads the four corners `(x, z)`, `(x, z + 1)`,
+    /// `(x + 1, z)`, `(x + 1, z + 1)` of a trilinear fetch — two gathers
+    /// per fetch instead of four.
+    U8(Vec<u16>),
+    /// Per voxel `v(x, y, z)` and `v(x, y, z + 1)` side by side (the last
+    /// slice pairs with itself), so a row's four corners lie in 16
+    /// contiguous bytes: a trilinear fetch reads two rows, two cache lines,
+    /// where the grid itself spreads its eight corners over four (two
+    /// slices, two rows each), and four 64-bit gathers instead of eight
+    /// 32-bit ones. [`fits`] keeps the volumes the packets march below
+    /// 1 GiB, so the copy stays below 2 GiB.
+    F32(Vec<[f32; 2]>),
+    None,
 }
 
 /// Per voxel of `v` (`dims`, x fastest), `pack` of `v(x, y, z)` and
-/// `v(x, y, z + 1)` (the last slice paired with itself), on 2 MiB pages
-/// where Linux allows.
-fn paired<T: Copy, P>(v: &[T], dims: [usize; 3], pack: impl Fn(T, T) -> P) -> Vec<P> {
+/// `v(x, y, z + 1)` (the last slice paired with itself), into `out`:
+/// its allocation is reused where it is large enough, else a fresh one
+/// gets the huge-page hint before any page is touched.
+fn paired_into<T: Copy, P>(out: &mut Vec<P>, v: &[T], dims: [usize; 3], pack: impl Fn(T, T) -> P) {
     let slice = dims[0] * dims[1];
     let last = slice * (dims[2] - 1);
-    let mut out = Vec::with_capacity(v.len());
-    huge_pages(&mut out);
+    out.clear();
+    if out.capacity() < v.len() {
+        *out = Vec::with_capacity(v.len());
+        huge_pages(out);
+    }
     out.extend(v.iter().enumerate().map(|(i, &a)| {
         let b = if i < last { v[i + slice] } else { a };
         pack(a, b)
     }));
-    out
-}
-
-/// The f32 layout the packets fetch from: per voxel `v(x, y, z)` and
-/// `v(x, y, z + 1)` side by side (the last slice pairs with itself), so a
-/// row's four corners `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)`
-/// lie in 16 contiguous bytes: a trilinear fetch reads two rows, two
-/// cache lines, where the grid itself spreads its eight corners over four
-/// (two slices, two rows each), and four 64-bit gathers instead of eight
-/// 32-bit ones. Twice the volume's bytes; [`fits`] keeps the volumes the
-/// packets march below 1 GiB, so the copy stays below 2 GiB.
-pub(in crate::render) fn z_pairs_f32(v: &[f32], dims: [usize; 3]) -> Vec<[f32; 2]> {
-    paired(v, dims, |a, b| [a, b])
-}
-
-/// The z-paired copy of a volume the packets fetch from, by voxel type
-/// (u16 and i16 volumes are fetched from the grid itself). Built once per
-/// renderer, or per brick out of core.
-pub(in crate::render) enum ZPairs {
-    U8(Vec<u16>),
-    F32(Vec<[f32; 2]>),
-    None,
 }
 
 impl ZPairs {
     /// The copy for `data` of `dims`.
     pub(in crate::render) fn of(data: &VoxelData, dims: [usize; 3]) -> ZPairs {
+        let mut z = ZPairs::None;
         match data {
-            VoxelData::U8(v) => ZPairs::U8(z_pairs(v, dims)),
-            VoxelData::F32(v) => ZPairs::F32(z_pairs_f32(v, dims)),
-            VoxelData::U16(_) | VoxelData::I16(_) => ZPairs::None,
+            VoxelData::U8(v) => z.refill(v, dims),
+            VoxelData::U16(v) => z.refill(v, dims),
+            VoxelData::I16(v) => z.refill(v, dims),
+            VoxelData::F32(v) => z.refill(v, dims),
+        }
+        z
+    }
+
+    /// Makes this the copy for `data` of `dims`, reusing its allocation
+    /// where it holds the same type (out of core, one copy refilled brick
+    /// after brick). The one place that says which voxel types have a copy.
+    pub(in crate::render) fn refill<T: Voxel>(&mut self, data: &[T], dims: [usize; 3]) {
+        let old = std::mem::replace(self, ZPairs::None);
+        match T::KIND {
+            VoxelKind::U8 => {
+                let mut out = match old {
+                    ZPairs::U8(v) => v,
+                    _ => Vec::new(),
+                };
+                let v = same::<T, u8>(data);
+                paired_into(&mut out, v, dims, |a, b| a as u16 | (b as u16) << 8);
+                *self = ZPairs::U8(out);
+            }
+            VoxelKind::F32 => {
+                let mut out = match old {
+                    ZPairs::F32(v) => v,
+                    _ => Vec::new(),
+                };
+                paired_into(&mut out, same::<T, f32>(data), dims, |a, b| [a, b]);
+                *self = ZPairs::F32(out);
+            }
+            VoxelKind::U16 | VoxelKind::I16 => {}
         }
     }
 
@@ -240,6 +264,16 @@ impl ZPairs {
             _ => panic!("the packets' z-paired copy is not of the grid's voxel type"),
         }
     }
+}
+
+/// `data` as a slice of `U`, which `T::KIND` says `T` is.
+///
+/// # Panics
+/// Where `T` is not `U` (a `Voxel` impl whose `KIND` names another type).
+fn same<T: 'static, U: 'static>(data: &[T]) -> &[U] {
+    assert_eq!(std::any::TypeId::of::<T>(), std::any::TypeId::of::<U>());
+    // SAFETY: T and U are the same type (checked above).
+    unsafe { std::slice::from_raw_parts(data.as_ptr() as *const U, data.len()) }
 }
 
 /// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
