@@ -128,6 +128,15 @@ pub(super) struct Deferred {
     /// The premultiplied colour.
     q: [[f32; CAP]; 3],
     lane: [i32; CAP],
+    /// The lane masks (bits) of the pushes whose samples wait, oldest
+    /// first, in a ring from `head`: a push queues its lanes in increasing
+    /// order, so a batch is a run of pushes, and each push's shaded
+    /// samples go back to their lanes by one expand ([`Deferred::add`]).
+    /// A push split across two batches keeps the lanes still waiting.
+    pushes: [u32; CAP],
+    head: usize,
+    /// Pushes waiting (at most `CAP − 1`: each has a sample waiting).
+    np: usize,
     /// Each lane's shaded colour so far.
     pub(super) acc: [[f32; LANES]; 3],
 }
@@ -152,6 +161,9 @@ impl Deferred {
             al: [0.0; CAP],
             q: [[0.0; CAP]; 3],
             lane: [0; CAP],
+            pushes: [0; CAP],
+            head: 0,
+            np: 0,
             acc: [[0.0; LANES]; 3],
         }
     }
@@ -182,7 +194,12 @@ impl Deferred {
         S::compress_at(self.q[1].as_mut_ptr().add(n), m, q[1]);
         S::compress_at(self.q[2].as_mut_ptr().add(n), m, q[2]);
         S::compress_at_i(self.lane.as_mut_ptr().add(n), m, S::iota());
-        self.n = n + S::bits(m).count_ones() as usize;
+        let bits = S::bits(m);
+        if bits != 0 {
+            self.pushes[(self.head + self.np) % CAP] = bits;
+            self.np += 1;
+        }
+        self.n = n + bits.count_ones() as usize;
         self.n >= S::N
     }
 
@@ -235,23 +252,49 @@ impl Deferred {
     }
 
     /// Adds the batch's shaded colours `e` (premultiplied by opacity),
-    /// times their weights, to their lanes.
+    /// times their weights, to their lanes: push by push, each push's
+    /// samples (distinct lanes, in order) permuted back to their lanes and
+    /// added in registers, so each lane adds its samples in the order
+    /// they were queued.
     ///
     /// # Safety
-    /// The width's instructions.
+    /// The width's instructions; `b` is the last [`Deferred::take`].
     #[inline(always)]
     pub(super) unsafe fn add<S: Simd>(&mut self, b: &Batch<S>, e: [S::F; 3]) {
-        let lane = S::store_i(b.lane);
-        let v = [
-            S::store(e[0] * b.w),
-            S::store(e[1] * b.w),
-            S::store(e[2] * b.w),
+        let v = [e[0] * b.w, e[1] * b.w, e[2] * b.w];
+        let mut acc = [
+            S::load_at(self.acc[0].as_ptr()),
+            S::load_at(self.acc[1].as_ptr()),
+            S::load_at(self.acc[2].as_ptr()),
         ];
-        for j in 0..b.k {
-            let l = lane[j] as usize;
-            self.acc[0][l] += v[0][j];
-            self.acc[1][l] += v[1][j];
-            self.acc[2][l] += v[2][j];
+        let mut pos = 0;
+        while pos < b.k {
+            debug_assert!(self.np > 0);
+            let m = self.pushes[self.head];
+            let left = b.k - pos;
+            let dest = if m.count_ones() as usize <= left {
+                self.head = (self.head + 1) % CAP;
+                self.np -= 1;
+                m
+            } else {
+                // The push goes on into the next batch: its lowest lanes
+                // are in this one.
+                let mut rest = m;
+                for _ in 0..left {
+                    rest &= rest - 1;
+                }
+                self.pushes[self.head] = rest;
+                m ^ rest
+            };
+            let idx = S::expand_order(dest, pos as i32);
+            let dm = S::from_bits(dest);
+            for (a, &v) in acc.iter_mut().zip(&v) {
+                *a = *a + S::keep(dm, S::permute(v, idx));
+            }
+            pos += dest.count_ones() as usize;
+        }
+        for (row, &a) in self.acc.iter_mut().zip(&acc) {
+            S::store_at(row.as_mut_ptr(), a);
         }
     }
 }

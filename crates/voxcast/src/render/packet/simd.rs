@@ -95,6 +95,11 @@ pub(super) trait Simd: Copy {
     unsafe fn permute(v: Self::F, idx: Self::I) -> Self::F;
     /// `0, 1, …, N − 1`.
     unsafe fn iota() -> Self::I;
+    /// The permute (for [`Simd::permute`]) that puts lanes `pos`,
+    /// `pos + 1`, … of a vector into the lanes of `dest` (bits), in
+    /// order: an expand after a shift. Lanes not in `dest` unspecified;
+    /// `pos + dest.count_ones()` ≤ `N`.
+    unsafe fn expand_order(dest: u32, pos: i32) -> Self::I;
 
     /// Lane `i` of `m` is bit `i`.
     unsafe fn bits(m: Self::M) -> u32;

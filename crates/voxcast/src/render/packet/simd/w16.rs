@@ -280,6 +280,12 @@ impl Simd for W16 {
     }
 
     #[inline(always)]
+    unsafe fn expand_order(dest: u32, pos: i32) -> I16 {
+        let from = _mm512_add_epi32(Self::iota().0, _mm512_set1_epi32(pos));
+        I16(_mm512_maskz_expand_epi32(dest as __mmask16, from))
+    }
+
+    #[inline(always)]
     unsafe fn bits(m: __mmask16) -> u32 {
         m as u32
     }

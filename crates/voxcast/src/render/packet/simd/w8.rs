@@ -68,15 +68,40 @@ static COMPRESS: [u32; 256] = {
     t
 };
 
-/// The permute that moves the lanes of `m` to the front, in order.
+/// For each 8-lane mask, each lane's rank among the mask's lanes, a
+/// nibble each (zero for lanes not in it): the permute of an expand.
+static EXPAND: [u32; 256] = {
+    let mut t = [0u32; 256];
+    let mut m = 0;
+    while m < 256 {
+        let (mut packed, mut k, mut i) = (0u32, 0, 0);
+        while i < 8 {
+            if (m >> i) & 1 == 1 {
+                packed |= (k as u32) << (4 * i);
+                k += 1;
+            }
+            i += 1;
+        }
+        t[m] = packed;
+        m += 1;
+    }
+    t
+};
+
+/// The nibbles of `packed` as eight lanes.
 #[inline(always)]
-unsafe fn compress_order(m: __m256) -> __m256i {
-    let packed = COMPRESS[_mm256_movemask_ps(m) as usize & 0xff];
+unsafe fn nibbles(packed: u32) -> __m256i {
     let sh = _mm256_srlv_epi32(
         _mm256_set1_epi32(packed as i32),
         _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28),
     );
     _mm256_and_si256(sh, _mm256_set1_epi32(7))
+}
+
+/// The permute that moves the lanes of `m` to the front, in order.
+#[inline(always)]
+unsafe fn compress_order(m: __m256) -> __m256i {
+    nibbles(COMPRESS[_mm256_movemask_ps(m) as usize & 0xff])
 }
 
 impl<const LOADS: bool> Simd for W8<LOADS> {
@@ -361,6 +386,11 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
     #[inline(always)]
     unsafe fn iota() -> I8 {
         I8(_mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7))
+    }
+    #[inline(always)]
+    unsafe fn expand_order(dest: u32, pos: i32) -> I8 {
+        let rank = nibbles(EXPAND[dest as usize & 0xff]);
+        I8(_mm256_add_epi32(rank, _mm256_set1_epi32(pos)))
     }
 
     #[inline(always)]
