@@ -123,3 +123,57 @@ pub(super) struct W16;
 
 mod w16;
 mod w8;
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use super::*;
+
+    /// Every mask `dest` and start `pos` that fit: lane `l` of `dest`
+    /// gets element `pos` + (the lanes of `dest` below `l`).
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    unsafe fn expand_order_puts_runs_on_their_lanes<S: Simd>() {
+        let mut src = S::Af::default();
+        for i in 0..S::N {
+            src[i] = i as f32;
+        }
+        let src = S::load(src);
+        for dest in 0u32..(1 << S::N) {
+            let c = dest.count_ones() as usize;
+            for pos in 0..=S::N - c {
+                let got = S::store(S::permute(src, S::expand_order(dest, pos as i32)));
+                let mut rank = 0;
+                for l in 0..S::N {
+                    if dest >> l & 1 == 1 {
+                        assert_eq!(got[l], (pos + rank) as f32, "dest {dest:b} pos {pos}");
+                        rank += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn on_w8() {
+        expand_order_puts_runs_on_their_lanes::<W8<false>>();
+    }
+
+    #[target_feature(enable = "avx2,fma,avx512f")]
+    unsafe fn on_w16() {
+        expand_order_puts_runs_on_their_lanes::<W16>();
+    }
+
+    #[test]
+    fn expand_order_at_each_width_the_cpu_has() {
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has the instructions (checked above).
+            unsafe { on_w8() };
+        }
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: as above.
+            unsafe { on_w16() };
+        }
+    }
+}
