@@ -48,16 +48,21 @@ unsafe fn odds(a: __m256, b: __m256) -> __m256 {
     _mm256_castpd_ps(_mm256_permute4x64_pd::<0xD8>(_mm256_castps_pd(s)))
 }
 
-/// For each 8-lane mask, the lanes it holds in order, a nibble each
-/// (the rest zero): AVX2 has no compress, so a permute by this order.
-static COMPRESS: [u32; 256] = {
+/// For each 8-lane mask, a permute as eight nibbles: with `expand`
+/// false the lanes it holds in order (the rest zero), with `expand` true
+/// each of its lanes' rank among them (zero for the others).
+const fn nibble_table(expand: bool) -> [u32; 256] {
     let mut t = [0u32; 256];
     let mut m = 0;
     while m < 256 {
         let (mut packed, mut k, mut i) = (0u32, 0, 0);
         while i < 8 {
             if (m >> i) & 1 == 1 {
-                packed |= (i as u32) << (4 * k);
+                packed |= if expand {
+                    (k as u32) << (4 * i)
+                } else {
+                    (i as u32) << (4 * k)
+                };
                 k += 1;
             }
             i += 1;
@@ -66,27 +71,13 @@ static COMPRESS: [u32; 256] = {
         m += 1;
     }
     t
-};
+}
 
-/// For each 8-lane mask, each lane's rank among the mask's lanes, a
-/// nibble each (zero for lanes not in it): the permute of an expand.
-static EXPAND: [u32; 256] = {
-    let mut t = [0u32; 256];
-    let mut m = 0;
-    while m < 256 {
-        let (mut packed, mut k, mut i) = (0u32, 0, 0);
-        while i < 8 {
-            if (m >> i) & 1 == 1 {
-                packed |= (k as u32) << (4 * i);
-                k += 1;
-            }
-            i += 1;
-        }
-        t[m] = packed;
-        m += 1;
-    }
-    t
-};
+/// AVX2 has no compress: a permute by this order.
+static COMPRESS: [u32; 256] = nibble_table(false);
+
+/// Nor an expand: [`Simd::expand_order`] permutes by these ranks.
+static EXPAND: [u32; 256] = nibble_table(true);
 
 /// The nibbles of `packed` as eight lanes.
 #[inline(always)]
