@@ -44,8 +44,16 @@ pub(super) struct FrameArgs<'a> {
 }
 
 /// The brick being marched: its data box copied out of the cached chunks,
-/// in the store's type (one buffer reused brick after brick).
-pub(super) enum BrickBuf {
+/// in the store's type, and the packets' z-paired copy of it (both reused
+/// brick after brick).
+pub(super) struct BrickBuf {
+    data: Data,
+    /// Refilled from `data` when the packets march the brick.
+    z_pairs: ZPairs,
+}
+
+/// A brick's voxels in the store's type.
+enum Data {
     U8(Vec<u8>),
     U16(Vec<u16>),
     I16(Vec<i16>),
@@ -80,11 +88,15 @@ stored!(f32, F32);
 
 impl BrickBuf {
     pub(super) fn new(ty: ScalarType) -> BrickBuf {
-        match ty {
-            ScalarType::U8 => BrickBuf::U8(Vec::new()),
-            ScalarType::U16 => BrickBuf::U16(Vec::new()),
-            ScalarType::I16 => BrickBuf::I16(Vec::new()),
-            ScalarType::F32 => BrickBuf::F32(Vec::new()),
+        let data = match ty {
+            ScalarType::U8 => Data::U8(Vec::new()),
+            ScalarType::U16 => Data::U16(Vec::new()),
+            ScalarType::I16 => Data::I16(Vec::new()),
+            ScalarType::F32 => Data::F32(Vec::new()),
+        };
+        BrickBuf {
+            data,
+            z_pairs: ZPairs::None,
         }
     }
 
@@ -98,41 +110,40 @@ impl BrickBuf {
         ranges: &[ChunkRange],
         cache: &ChunkCache<'_>,
     ) -> Result<Option<(f32, f32)>> {
-        match self {
-            BrickBuf::U8(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
-            BrickBuf::U16(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
-            BrickBuf::I16(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
-            BrickBuf::F32(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+        match &mut self.data {
+            Data::U8(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+            Data::U16(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+            Data::I16(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
+            Data::F32(v) => fill_box(v, geo, dbox, chunks, ranges, cache),
         }
     }
 
     /// The value range of each [`CELL`]³ cell of the buffer (its `dims`).
     pub(super) fn cell_ranges(&self, dims: [usize; 3]) -> CellRanges {
-        match self {
-            BrickBuf::U8(v) => cell_ranges(v, dims),
-            BrickBuf::U16(v) => cell_ranges(v, dims),
-            BrickBuf::I16(v) => cell_ranges(v, dims),
-            BrickBuf::F32(v) => cell_ranges(v, dims),
+        match &self.data {
+            Data::U8(v) => cell_ranges(v, dims),
+            Data::U16(v) => cell_ranges(v, dims),
+            Data::I16(v) => cell_ranges(v, dims),
+            Data::F32(v) => cell_ranges(v, dims),
         }
     }
 
     /// Marches the pixels of `rect` through the buffer (`dims`); the
-    /// packets fetch from `z_pairs`, refilled from the buffer (one copy
-    /// reused brick after brick, as the buffer is).
+    /// packets fetch from the z-paired copy, refilled here.
     pub(super) fn march(
-        &self,
+        &mut self,
         a: &FrameArgs<'_>,
         dims: [usize; 3],
         px: &mut [Px],
         w: u32,
         rect: [u32; 4],
-        z_pairs: &mut ZPairs,
     ) -> RowCount {
-        match self {
-            BrickBuf::U8(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
-            BrickBuf::U16(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
-            BrickBuf::I16(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
-            BrickBuf::F32(v) => march_rows(v, a, dims, px, w, rect, z_pairs),
+        let z = &mut self.z_pairs;
+        match &self.data {
+            Data::U8(v) => march_rows(v, a, dims, px, w, rect, z),
+            Data::U16(v) => march_rows(v, a, dims, px, w, rect, z),
+            Data::I16(v) => march_rows(v, a, dims, px, w, rect, z),
+            Data::F32(v) => march_rows(v, a, dims, px, w, rect, z),
         }
     }
 }

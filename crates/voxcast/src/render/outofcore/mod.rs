@@ -40,7 +40,6 @@ pub use cache::{human_bytes, parse_bytes, CacheStats};
 use crate::camera::{Camera, CameraParams};
 use crate::error::{Error, Result};
 use crate::image::Image;
-use crate::render::packet::ZPairs;
 use crate::render::shading::BlinnPhong;
 use crate::render::{Method, Order, RenderParams, RenderStats};
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction, LUT_SIZE};
@@ -611,7 +610,6 @@ impl<'s> OutOfCore<'s> {
                 });
             }
             let mut buf = BrickBuf::new(ty);
-            let mut z_pairs = ZPairs::None;
             let mut flags = Vec::new();
             for (j, b) in plan.iter().enumerate() {
                 cursor.store(j, Ordering::Release);
@@ -720,7 +718,7 @@ impl<'s> OutOfCore<'s> {
                         .skip_empty
                         .then_some((&flags[..], cell_ranges.counts)),
                 };
-                let c = buf.march(&frame, dims, &mut px, w, b.rect, &mut z_pairs);
+                let c = buf.march(&frame, dims, &mut px, w, b.rect);
                 counts_total.samples += c.samples;
                 counts_total.shaded += c.shaded;
                 counts_total.terminated += c.terminated;

@@ -272,10 +272,11 @@ impl Deferred {
             debug_assert!(self.np > 0);
             let m = self.pushes[self.head];
             let left = b.k - pos;
-            let dest = if m.count_ones() as usize <= left {
+            let n = m.count_ones() as usize;
+            let (dest, taken) = if n <= left {
                 self.head = (self.head + 1) % CAP;
                 self.np -= 1;
-                m
+                (m, n)
             } else {
                 // The push goes on into the next batch: its lowest lanes
                 // are in this one.
@@ -284,14 +285,14 @@ impl Deferred {
                     rest &= rest - 1;
                 }
                 self.pushes[self.head] = rest;
-                m ^ rest
+                (m ^ rest, left)
             };
             let idx = S::expand_order(dest, pos as i32);
             let dm = S::from_bits(dest);
             for (a, &v) in acc.iter_mut().zip(&v) {
                 *a = *a + S::keep(dm, S::permute(v, idx));
             }
-            pos += dest.count_ones() as usize;
+            pos += taken;
         }
         for (row, &a) in self.acc.iter_mut().zip(&acc) {
             S::store_at(row.as_mut_ptr(), a);
