@@ -188,8 +188,10 @@ pub struct SceneArgs {
     /// stratified, mc and back to front run the scalar loop); `avx2` keeps the
     /// packets to AVX2, fetching with its gather instructions; `avx2-loads`
     /// to AVX2 fetching with scalar loads (what `auto` picks on AMD CPUs
-    /// without AVX-512, whose gathers are slower); `scalar` always runs the
-    /// scalar loop (the same picture).
+    /// without AVX-512, whose gathers are slower); `avx512` and
+    /// `avx512-loads` the same at AVX-512 (`auto` picks the loads on AMD,
+    /// the gathers on Intel); `scalar` always runs the scalar loop (the same
+    /// picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,
     /// Gradient (Blinn–Phong) shading: on or off (default on).
@@ -309,6 +311,8 @@ pub enum SimdArg {
     Auto,
     Avx2,
     Avx2Loads,
+    Avx512,
+    Avx512Loads,
     Scalar,
 }
 
@@ -431,6 +435,8 @@ impl SceneArgs {
                 SimdArg::Auto => Simd::Auto,
                 SimdArg::Avx2 => Simd::Avx2,
                 SimdArg::Avx2Loads => Simd::Avx2Loads,
+                SimdArg::Avx512 => Simd::Avx512,
+                SimdArg::Avx512Loads => Simd::Avx512Loads,
                 SimdArg::Scalar => Simd::Scalar,
             };
         }

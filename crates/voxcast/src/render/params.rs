@@ -288,6 +288,13 @@ pub enum Simd {
     /// The AVX2 packets fetching by scalar loads (what `Auto` picks on
     /// AMD CPUs without AVX-512).
     Avx2Loads,
+    /// The packets compiled for AVX-512, fetching by its gathers (what
+    /// `Auto` picks on Intel CPUs with AVX-512); the scalar loop where the
+    /// CPU has no AVX-512.
+    Avx512,
+    /// The AVX-512 packets fetching by scalar loads (what `Auto` picks on
+    /// AMD CPUs with AVX-512); the scalar loop where the CPU has none.
+    Avx512Loads,
     /// The scalar loop always (the reference the packets are tested
     /// against).
     Scalar,

@@ -105,6 +105,10 @@ pub enum Level {
     /// AVX-512 F: sixteen lanes in 512-bit registers, lane masks in mask
     /// registers, thirty-two registers.
     Avx512,
+    /// The same, fetching lane by lane with scalar loads: faster where the
+    /// AVX-512 gathers are slow (AMD's Zen 5: `packet::gathers_by_loads`).
+    #[serde(rename = "avx512-loads")]
+    Avx512Loads,
 }
 
 impl Level {
@@ -113,6 +117,7 @@ impl Level {
             Level::Avx2 => "avx2",
             Level::Avx2Loads => "avx2-loads",
             Level::Avx512 => "avx512",
+            Level::Avx512Loads => "avx512-loads",
         }
     }
 }
@@ -128,10 +133,14 @@ pub fn level(simd: super::Simd) -> Option<Level> {
         match simd {
             Simd::Scalar => None,
             _ if !avx2 => None,
+            Simd::Auto if avx512 && gathers_by_loads() => Some(Level::Avx512Loads),
             Simd::Auto if avx512 => Some(Level::Avx512),
             Simd::Auto if gathers_by_loads() => Some(Level::Avx2Loads),
             Simd::Auto | Simd::Avx2 => Some(Level::Avx2),
             Simd::Avx2Loads => Some(Level::Avx2Loads),
+            Simd::Avx512 | Simd::Avx512Loads if !avx512 => None,
+            Simd::Avx512 => Some(Level::Avx512),
+            Simd::Avx512Loads => Some(Level::Avx512Loads),
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
@@ -141,15 +150,15 @@ pub fn level(simd: super::Simd) -> Option<Level> {
     }
 }
 
-/// Whether the AVX2 packets fetch by scalar loads rather than the gather
-/// instructions: on AMD's cores (and Hygon's, the same design) up to Zen
-/// 3, which have AVX2 but no AVX-512, a gather of eight is slower than
-/// eight loads. Measured on an AMD EPYC (Zen 3), the same frames,
-/// alternating builds: Marschner–Lobb 256³ unshaded 156–162 → 125–131 ms,
-/// the teapot 57–64 → 53–60 ms (docs/engine.md, "Gathers or loads"). On
-/// an Intel Xeon the table rows were faster by gathers than by loads
-/// (docs/engine.md, "Table rows by 64-bit gathers"), so the gathers stay
-/// the default elsewhere.
+/// Whether the packets fetch by scalar loads rather than the gather
+/// instructions: on AMD's cores (and Hygon's, the same design) a gather
+/// is slower than the loads. Measured on an AMD EPYC (Zen 3, AVX2), the
+/// same frames, alternating builds: Marschner–Lobb 256³ unshaded 156–162
+/// → 125–131 ms, the teapot 57–64 → 53–60 ms; on an AMD EPYC (Zen 5,
+/// AVX-512), one thread: 131–136 → 92–95 ms and 49–51 → 39–41 ms
+/// (docs/engine.md, "Gathers or loads"). On an Intel Xeon the table rows
+/// were faster by gathers than by loads (docs/engine.md, "Table rows by
+/// 64-bit gathers"), so the gathers stay the default elsewhere.
 #[cfg(target_arch = "x86_64")]
 pub fn gathers_by_loads() -> bool {
     // SAFETY: CPUID leaf 0 exists on every x86-64 CPU.
@@ -734,12 +743,14 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 Level::Avx2 => thr!(thr_avx2),
                 Level::Avx2Loads => thr!(thr_avx2_loads),
                 Level::Avx512 => thr!(thr_avx512),
+                Level::Avx512Loads => thr!(thr_avx512_loads),
             };
         }
         match self.level {
             Level::Avx2 => go!(march_avx2),
             Level::Avx2Loads => go!(march_avx2_loads),
             Level::Avx512 => go!(march_avx512),
+            Level::Avx512Loads => go!(march_avx512_loads),
         }
     }
 

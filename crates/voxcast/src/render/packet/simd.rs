@@ -117,9 +117,13 @@ pub(super) trait Simd: Copy {
 #[derive(Clone, Copy)]
 pub(super) struct W8<const LOADS: bool>;
 
-/// Sixteen lanes in AVX-512 registers.
+/// Sixteen lanes in AVX-512 registers. `LOADS`: the voxels' gathers and
+/// the table rows fetched by one scalar load per lane (sixteen 128-bit
+/// row loads and a transpose for the rows), which AMD's Zen 5 runs much
+/// faster than its AVX-512 gathers (see [`super::gathers_by_loads`]); the
+/// same values either way.
 #[derive(Clone, Copy)]
-pub(super) struct W16;
+pub(super) struct W16<const LOADS: bool>;
 
 mod w16;
 mod w8;
@@ -162,7 +166,7 @@ mod tests {
 
     #[target_feature(enable = "avx2,fma,avx512f")]
     unsafe fn on_w16() {
-        expand_order_puts_runs_on_their_lanes::<W16>();
+        expand_order_puts_runs_on_their_lanes::<W16<false>>();
     }
 
     #[test]

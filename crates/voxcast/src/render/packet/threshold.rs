@@ -6,7 +6,7 @@
 //! scalar march restarts at the next block that is not empty.
 
 #[cfg(target_arch = "x86_64")]
-pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512};
+pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512, thr_avx512_loads};
 
 use super::{Lane, Packets, Runs, Setup};
 use crate::render::march::ThresholdParams;
@@ -105,7 +105,17 @@ mod vector {
         /// As [`thr_avx2`], and AVX-512 F present.
         pub(in crate::render::packet) thr_avx512,
         "avx2,fma,avx512f",
-        W16,
+        W16<false>,
+        march<SKIP, SHADE>
+    );
+    entry!(
+        /// [`thr_avx512`] fetching by scalar loads.
+        ///
+        /// # Safety
+        /// As [`thr_avx512`].
+        pub(in crate::render::packet) thr_avx512_loads,
+        "avx2,fma,avx512f",
+        W16<true>,
         march<SKIP, SHADE>
     );
 

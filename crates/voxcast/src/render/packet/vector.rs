@@ -513,7 +513,17 @@ entry!(
     /// As [`march_avx2`], and AVX-512 F present.
     pub(super) march_avx512,
     "avx2,fma,avx512f",
-    W16,
+    W16<false>,
+    march<SKIP, SHADE, IMP, GROUPED>
+);
+entry!(
+    /// [`march_avx512`] fetching by scalar loads ([`W16`]`<true>`).
+    ///
+    /// # Safety
+    /// As [`march_avx512`].
+    pub(super) march_avx512_loads,
+    "avx2,fma,avx512f",
+    W16<true>,
     march<SKIP, SHADE, IMP, GROUPED>
 );
 

@@ -1,5 +1,6 @@
 //! [`W16`]: sixteen lanes in AVX-512 registers, lane masks in mask
-//! registers (`__mmask16`).
+//! registers (`__mmask16`), fetching by the gather instructions or, as
+//! `W16<true>`, lane by lane with scalar loads.
 
 use super::{Simd, W16};
 use std::arch::x86_64::*;
@@ -36,6 +37,25 @@ op!(I16, Sub, sub, _mm512_sub_epi32);
 const FLOOR: i32 = 0x09;
 const CEIL: i32 = 0x0A;
 
+/// The 64-bit elements at byte offsets `ix[a..a + 8] · scale` from `p`.
+#[inline(always)]
+unsafe fn pairs(p: *const i64, ix: &[i32; 16], a: usize, scale: i32) -> __m512i {
+    let b = p as *const u8;
+    let at =
+        |k: usize| (b.offset(ix[a + k] as isize * scale as isize) as *const i64).read_unaligned();
+    _mm512_setr_epi64(at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7))
+}
+
+/// Rows `ix[a]`, `ix[a + 4]`, `ix[a + 8]`, `ix[a + 12]` of `table` (float
+/// offsets), one per 128-bit lane.
+#[inline(always)]
+unsafe fn quad(table: *const f32, ix: &[i32; 16], a: usize) -> __m512 {
+    let v = _mm512_castps128_ps512(_mm_loadu_ps(table.add(ix[a] as usize)));
+    let v = _mm512_insertf32x4::<1>(v, _mm_loadu_ps(table.add(ix[a + 4] as usize)));
+    let v = _mm512_insertf32x4::<2>(v, _mm_loadu_ps(table.add(ix[a + 8] as usize)));
+    _mm512_insertf32x4::<3>(v, _mm_loadu_ps(table.add(ix[a + 12] as usize)))
+}
+
 /// The lanes `i` of the 32 floats of `a` then `b`. (A function, not a
 /// closure: a closure would not inherit the caller's AVX-512.)
 #[inline(always)]
@@ -43,7 +63,7 @@ unsafe fn pick(a: __m512i, i: __m512i, b: __m512i) -> __m512 {
     _mm512_permutex2var_ps(_mm512_castsi512_ps(a), i, _mm512_castsi512_ps(b))
 }
 
-impl Simd for W16 {
+impl<const LOADS: bool> Simd for W16<LOADS> {
     const N: usize = 16;
     type F = F16;
     type I = I16;
@@ -198,6 +218,31 @@ impl Simd for W16 {
     }
     #[inline(always)]
     unsafe fn gather<const SCALE: i32>(p: *const i32, idx: I16) -> I16 {
+        if LOADS {
+            let ix = Self::store_i(idx);
+            let b = p as *const u8;
+            let at = |k: usize| {
+                (b.offset(ix[k] as isize * SCALE as isize) as *const i32).read_unaligned()
+            };
+            return I16(_mm512_setr_epi32(
+                at(0),
+                at(1),
+                at(2),
+                at(3),
+                at(4),
+                at(5),
+                at(6),
+                at(7),
+                at(8),
+                at(9),
+                at(10),
+                at(11),
+                at(12),
+                at(13),
+                at(14),
+                at(15),
+            ));
+        }
         I16(_mm512_i32gather_epi32::<SCALE>(idx.0, p))
     }
     #[inline(always)]
@@ -206,12 +251,19 @@ impl Simd for W16 {
     }
     #[inline(always)]
     unsafe fn gather_pair<const SCALE: i32>(p: *const i64, idx: I16) -> (I16, I16) {
-        let (lo, hi) = (
-            _mm512_castsi512_si256(idx.0),
-            _mm512_extracti64x4_epi64::<1>(idx.0),
-        );
-        let a = _mm512_i32gather_epi64::<SCALE>(lo, p);
-        let b = _mm512_i32gather_epi64::<SCALE>(hi, p);
+        let (a, b) = if LOADS {
+            let ix = Self::store_i(idx);
+            (pairs(p, &ix, 0, SCALE), pairs(p, &ix, 8, SCALE))
+        } else {
+            let (lo, hi) = (
+                _mm512_castsi512_si256(idx.0),
+                _mm512_extracti64x4_epi64::<1>(idx.0),
+            );
+            (
+                _mm512_i32gather_epi64::<SCALE>(lo, p),
+                _mm512_i32gather_epi64::<SCALE>(hi, p),
+            )
+        };
         let even = _mm512_setr_epi32(0, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30);
         let odd = _mm512_add_epi32(even, _mm512_set1_epi32(1));
         (
@@ -221,6 +273,25 @@ impl Simd for W16 {
     }
     #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I16) -> [F16; 4] {
+        if LOADS {
+            let ix = Self::store_i(i4);
+            let (a0, a1, a2, a3) = (
+                quad(table, &ix, 0),
+                quad(table, &ix, 1),
+                quad(table, &ix, 2),
+                quad(table, &ix, 3),
+            );
+            let t0 = _mm512_unpacklo_ps(a0, a1);
+            let t1 = _mm512_unpacklo_ps(a2, a3);
+            let t2 = _mm512_unpackhi_ps(a0, a1);
+            let t3 = _mm512_unpackhi_ps(a2, a3);
+            return [
+                F16(_mm512_shuffle_ps::<0x44>(t0, t1)),
+                F16(_mm512_shuffle_ps::<0xEE>(t0, t1)),
+                F16(_mm512_shuffle_ps::<0x44>(t2, t3)),
+                F16(_mm512_shuffle_ps::<0xEE>(t2, t3)),
+            ];
+        }
         // A row is two 64-bit halves, (r, g) and (b, a): four gathers of
         // eight 64-bit elements (32 loads, where four 16-wide gathers of
         // floats are 64 and sixteen row loads need a transpose), then one
