@@ -383,7 +383,7 @@ impl State<'_> {
 
 /// One lane's ray, set up by the scalar code as [`super::trace::trace`]
 /// does (or by the out-of-core renderer, from a pixel's state in a brick).
-#[derive(Clone, Copy, Default)]
+#[derive(Clone, Copy, Default, Debug, PartialEq)]
 pub(super) struct Lane {
     /// Origin and direction in the grid's voxel coordinates.
     pub o: Vec3,
@@ -465,6 +465,20 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         })
     }
 
+    /// What [`lanes`]' set-up reads of the render.
+    #[cfg(target_arch = "x86_64")]
+    fn geometry(&self) -> lanes::Geometry {
+        let f = self.f;
+        lanes::Geometry {
+            origin_w: f.origin_w,
+            inv_spacing: f.inv_spacing,
+            box_lo: f.box_lo,
+            box_hi: f.box_hi,
+            occupied: f.occupied,
+            st: self.st,
+        }
+    }
+
     /// Where pixel `pixel`'s sample grid starts on a ray entering at
     /// `t_in`: moved on by its jitter offset for pass `pass` where the
     /// render jitters (as [`super::trace::trace`]).
@@ -539,7 +553,37 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // behind the lane's samples).
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         let mut ends = [[0.0f32; 2]; LANES];
-        for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
+        // A fixed step with no surface: the lanes set up in vector
+        // registers ([`lanes`]).
+        #[cfg(target_arch = "x86_64")]
+        let vector_set_up =
+            !R::ON && self.thr.is_none() && self.imp.is_none() && self.surface.is_none();
+        #[cfg(not(target_arch = "x86_64"))]
+        let vector_set_up = false;
+        #[cfg(target_arch = "x86_64")]
+        if vector_set_up {
+            let mut jit = [0.0f32; LANES];
+            if let Some(seed) = self.jitter {
+                for (j, &(x, y)) in jit.iter_mut().zip(pixels) {
+                    *j = super::rng::pixel_sequence(seed, x, y, pass) * self.f.step;
+                }
+            }
+            let g = self.geometry();
+            stats.rays += rays.len() as u64;
+            // SAFETY: `level` checked the CPU before any packet was made.
+            stats.rays_hit += unsafe {
+                match self.level {
+                    Level::Avx2 | Level::Avx2Loads => {
+                        lanes::set_up_avx2(&g, rays, &jit, &mut lanes)
+                    }
+                    Level::Avx512 | Level::Avx512Loads => {
+                        lanes::set_up_avx512(&g, rays, &jit, &mut lanes)
+                    }
+                }
+            };
+        }
+        let scalar = rays.iter().zip(pixels).enumerate();
+        for (i, (&r, &pixel)) in scalar.filter(|_| !vector_set_up) {
             let hit = surface::first_hit(
                 self.f,
                 self.surface.as_ref(),
@@ -793,6 +837,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 #[cfg(target_arch = "x86_64")]
 mod simd;
 #[cfg(target_arch = "x86_64")]

@@ -1,0 +1,367 @@
+//! A fixed-step packet's lanes set up in vector registers: the sixteen
+//! rays' voxel-space origin and direction, their entry and exit of the
+//! volume's box and of the occupied box, and their first and last sample
+//! — what [`Packets::lane`](super::Packets) computes ray by ray — as a few
+//! vector operations for all of them. The divisions (three per ray for the
+//! box, three for the sample indices), the box tests' chains of `min` and
+//! `max` and the `ceil`s (a library call in the scalar build) were about a
+//! tenth of an unshaded teapot frame.
+//!
+//! The arithmetic is the scalar set-up's, operation for operation, so the
+//! lanes are the same bits, down to how each `min` and `max` treats a NaN
+//! (a ray parallel to a box face, starting on its plane: `0 · ∞`) and
+//! which zero of two it keeps: glam's `Vec3::min` is the instruction's
+//! rule, `f32::min` another ([`fmin`]).
+
+use super::simd::{Simd, W16, W8};
+use super::{Lane, LANES};
+use glam::Vec3;
+
+/// What the set-up reads of a render (the fields of its `Frame` and the
+/// packets' step).
+#[derive(Clone, Copy)]
+pub(super) struct Geometry {
+    pub origin_w: Vec3,
+    pub inv_spacing: Vec3,
+    pub box_lo: Vec3,
+    pub box_hi: Vec3,
+    pub occupied: Option<(Vec3, Vec3)>,
+    /// The step in voxel-space ray units.
+    pub st: f32,
+}
+
+/// `f32::min` as x86-64 builds it: where `a` is NaN, `b`; else the
+/// instruction's `b < a ? b : a` (which gives `a` where `b` is NaN, and
+/// picks the same zero of two).
+#[inline(always)]
+unsafe fn fmin<S: Simd>(a: S::F, b: S::F) -> S::F {
+    S::blend(S::eq(a, a), b, S::min(b, a))
+}
+
+/// `f32::max` as x86-64 builds it (see [`fmin`]).
+#[inline(always)]
+unsafe fn fmax<S: Simd>(a: S::F, b: S::F) -> S::F {
+    S::blend(S::eq(a, a), b, S::max(b, a))
+}
+
+/// One axis of the box test: the nearer and the farther crossing of the
+/// planes `lo` and `hi`, by glam's `Vec3::min`/`max` (`t0 < t1 ? t0 :
+/// t1`, the instructions' own rule: NaN where `t1` is, on the `hi`
+/// plane); the chains after it take `f32`'s, which drop a NaN.
+#[inline(always)]
+unsafe fn slab<S: Simd>(o: S::F, inv_d: S::F, lo: f32, hi: f32) -> (S::F, S::F) {
+    let t0 = (S::splat(lo) - o) * inv_d;
+    let t1 = (S::splat(hi) - o) * inv_d;
+    (S::min(t0, t1), S::max(t0, t1))
+}
+
+/// [`crate::render::march::intersect_box`] for the lanes: entry, exit,
+/// and the lanes that meet the box (`exit > entry`).
+#[inline(always)]
+unsafe fn intersect<S: Simd>(
+    o: [S::F; 3],
+    inv_d: [S::F; 3],
+    lo: Vec3,
+    hi: Vec3,
+) -> (S::F, S::F, S::M) {
+    let (x0, x1) = slab::<S>(o[0], inv_d[0], lo.x, hi.x);
+    let (y0, y1) = slab::<S>(o[1], inv_d[1], lo.y, hi.y);
+    let (z0, z1) = slab::<S>(o[2], inv_d[2], lo.z, hi.z);
+    let enter = fmax::<S>(fmax::<S>(fmax::<S>(x0, y0), z0), S::splat(0.0));
+    let exit = fmin::<S>(fmin::<S>(x1, y1), z1);
+    (enter, exit, S::gt(exit, enter))
+}
+
+/// `max(ceil(x), 0)`: a sample index as `Packets::lane` takes it (`ceil`,
+/// then `max(0.0)`, then a cast to `u32` that the callers undo exactly).
+#[inline(always)]
+unsafe fn index<S: Simd>(x: S::F) -> S::F {
+    S::max(S::ceil(x), S::splat(0.0))
+}
+
+/// Sets up `lanes[..rays.len()]` as `Packets::lane` does for rays that no
+/// surface stops (`rays`: world origin and unit direction; `jit[i]`: lane
+/// `i`'s grid offset, its jitter times the step, 0 without jitter).
+/// Returns how many rays met the volume's box.
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+unsafe fn set_up<S: Simd>(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+) -> u64 {
+    let mut hits = 0;
+    for base in (0..rays.len()).step_by(S::N) {
+        let n = (rays.len() - base).min(S::N);
+        let mut a = [S::Af::default(); 7];
+        for (i, (o, d)) in rays[base..base + n].iter().enumerate() {
+            a[0][i] = o.x;
+            a[1][i] = o.y;
+            a[2][i] = o.z;
+            a[3][i] = d.x;
+            a[4][i] = d.y;
+            a[5][i] = d.z;
+            a[6][i] = jit[base + i];
+        }
+        // Voxel space: `(origin − origin_w) · inv_spacing`, `dir · inv_spacing`.
+        let (ow, is) = (g.origin_w, g.inv_spacing);
+        let o = [
+            (S::load(a[0]) - S::splat(ow.x)) * S::splat(is.x),
+            (S::load(a[1]) - S::splat(ow.y)) * S::splat(is.y),
+            (S::load(a[2]) - S::splat(ow.z)) * S::splat(is.z),
+        ];
+        let d = [
+            S::load(a[3]) * S::splat(is.x),
+            S::load(a[4]) * S::splat(is.y),
+            S::load(a[5]) * S::splat(is.z),
+        ];
+        let one = S::splat(1.0);
+        let inv_d = [one / d[0], one / d[1], one / d[2]];
+        let (t_in, t_out, hit) = intersect::<S>(o, inv_d, g.box_lo, g.box_hi);
+        let lanes_n = S::from_bits((1u32 << n) - 1);
+        let hit = S::and(hit, lanes_n);
+        hits += S::bits(hit).count_ones() as u64;
+        let (w0, w1, ok) = match g.occupied {
+            Some((lo, hi)) => {
+                let (a0, b0, m) = intersect::<S>(o, inv_d, lo, hi);
+                let (a0, b0) = (fmax::<S>(a0, t_in), fmin::<S>(b0, t_out));
+                (a0, b0, S::and(hit, S::and(m, S::lt(a0, b0))))
+            }
+            None => (t_in, t_out, hit),
+        };
+        let t0 = t_in + S::load(a[6]);
+        let st = S::splat(g.st);
+        let k0 = index::<S>((w0 - t0) / st);
+        let n1 = index::<S>((t_out - t0) / st);
+        let n_end = S::min(index::<S>((w1 - t0) / st), n1);
+        let ok = S::bits(S::and(ok, S::gt(n_end, k0)));
+        let ends = S::bits(S::eq(n_end, n1));
+        let t_end = t_out + (t0 - t_in);
+        // (No `map` with a closure: it would not inherit the width.)
+        let v = [
+            S::store(o[0]),
+            S::store(o[1]),
+            S::store(o[2]),
+            S::store(d[0]),
+            S::store(d[1]),
+            S::store(d[2]),
+            S::store(t0),
+            S::store(t_end),
+            S::store(k0),
+            S::store(n_end),
+        ];
+        for (i, (_, dir)) in rays[base..base + n].iter().enumerate() {
+            lanes[base + i] = (ok >> i & 1 == 1).then(|| {
+                let n_end = v[9][i] as u32;
+                let (k_end, last) = if ends >> i & 1 == 1 {
+                    (n_end - 1, Some(n_end - 1))
+                } else {
+                    (n_end, None)
+                };
+                Lane {
+                    o: Vec3::new(v[0][i], v[1][i], v[2][i]),
+                    d: Vec3::new(v[3][i], v[4][i], v[5][i]),
+                    view: -*dir,
+                    t0: v[6][i],
+                    t_end: v[7][i],
+                    k0: v[8][i] as u32,
+                    k_end,
+                    last,
+                }
+            });
+        }
+    }
+    hits
+}
+
+/// [`set_up`] in AVX2 registers, eight lanes at a time.
+///
+/// # Safety
+/// AVX2 and FMA present.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn set_up_avx2(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+) -> u64 {
+    set_up::<W8<false>>(g, rays, jit, lanes)
+}
+
+/// [`set_up`] in AVX-512 registers, sixteen lanes at once.
+///
+/// # Safety
+/// AVX2, FMA and AVX-512 F present.
+#[target_feature(enable = "avx2,fma,avx512f")]
+pub(super) unsafe fn set_up_avx512(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+) -> u64 {
+    set_up::<W16<false>>(g, rays, jit, lanes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::composite::Weights;
+    use crate::render::packet::{Packets, ZPairs};
+    use crate::render::ray::Frame;
+    use crate::render::stats::RenderStats;
+    use crate::transfer::{Lut, TransferFunction};
+    use crate::volume::Grid;
+
+    /// Rays at the box and past it from many directions, with the cases
+    /// the NaN rule is for: rays parallel to a face's plane (a zero
+    /// direction component, of either sign) starting on that plane, where
+    /// the slab test meets `0 · ∞`; and rays along an axis, rays that miss.
+    fn rays(lo: Vec3, hi: Vec3) -> Vec<(Vec3, Vec3)> {
+        let mut out = Vec::new();
+        let mut s = 0x2545_f491_u32;
+        let mut rnd = || {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            s as f32 / u32::MAX as f32
+        };
+        let c = (lo + hi) * 0.5;
+        for i in 0..900 {
+            let mut dir = Vec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5);
+            let target = c + (Vec3::new(rnd(), rnd(), rnd()) - 0.5) * (hi - lo) * 1.4;
+            let a = (i / 2) % 3;
+            if i % 2 == 0 {
+                dir[a] = if (i / 6) % 2 == 0 { 0.0 } else { -0.0 };
+            }
+            if i % 10 == 1 {
+                dir = Vec3::ZERO;
+                dir[a] = if (i / 6) % 2 == 0 { 1.0 } else { -1.0 };
+            }
+            let dir = dir.normalize();
+            let mut origin = target - dir * 40.0;
+            if i % 2 == 0 {
+                match (i / 12) % 3 {
+                    0 => origin[a] = lo[a],
+                    1 => origin[a] = hi[a],
+                    _ => {}
+                }
+            }
+            out.push((origin, dir));
+        }
+        out
+    }
+
+    #[test]
+    fn vector_set_up_gives_the_scalar_lanes_bit_for_bit() {
+        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
+        if !avx2 {
+            return;
+        }
+        let avx512 = std::is_x86_feature_detected!("avx512f");
+        let dims = [9usize, 7, 5];
+        let data = vec![0u8; dims.iter().product()];
+        let grid = Grid::new(&data, dims, 0.0, 255.0);
+        let tf = TransferFunction {
+            color: vec![[0.0, 1.0, 1.0, 1.0], [1.0, 1.0, 1.0, 1.0]],
+            opacity: vec![[0.0, 0.0], [1.0, 1.0]],
+            window: None,
+        };
+        let lut = Lut::new(&tf, 1.0);
+        let q = lut.premultiplied(1.0);
+        let z = ZPairs::None;
+        let (lo, hi) = (Vec3::ZERO, Vec3::new(8.0, 6.0, 4.0));
+        // Spacing and origin that make voxel space differ from world space
+        // (powers of two, so that a world point on a face's plane is on it
+        // in voxel space too).
+        let (spacing, origin_w) = (Vec3::new(0.5, 2.0, 0.25), Vec3::new(-1.5, 0.25, 3.0));
+        let world = |p: Vec3| origin_w + p * spacing;
+        let rays: Vec<_> = rays(world(lo), world(hi));
+        for occupied in [
+            None,
+            Some((Vec3::new(1.5, 0.0, 1.0), Vec3::new(6.0, 5.5, 4.0))),
+        ] {
+            for jitter in [None, Some(11u64)] {
+                let frame = Frame {
+                    grid: &grid,
+                    lut: &lut,
+                    box_lo: lo,
+                    box_hi: hi,
+                    origin_w,
+                    inv_spacing: Vec3::ONE / spacing,
+                    step: 0.37,
+                    unit: 0.7,
+                    skip_empty: occupied.is_some(),
+                    block_size: 4,
+                    block_counts: [3, 2, 2],
+                    empty: &[],
+                    occupied,
+                    seed: 0,
+                };
+                let pk: Packets<'_, u8> = Packets {
+                    f: &frame,
+                    q: &q,
+                    st: 0.37 / 0.7,
+                    weights: Weights {
+                        emission: 1.0,
+                        absorption: 1.0,
+                    },
+                    stop: f32::INFINITY,
+                    jitter,
+                    empty: None,
+                    shading: None,
+                    z_pairs: &z,
+                    level: super::super::Level::Avx2,
+                    imp: None,
+                    runs: None,
+                    thr: None,
+                    surface: None,
+                };
+                let g = pk.geometry();
+                let mut met = 0;
+                // Packets of every size from 1 to 16.
+                let mut at = 0;
+                for (k, n) in (1..=LANES).cycle().enumerate() {
+                    if at + n > rays.len() {
+                        break;
+                    }
+                    let r = &rays[at..at + n];
+                    let pixels: Vec<(u32, u32)> = (0..n as u32).map(|i| (i, k as u32)).collect();
+                    let mut stats = RenderStats::default();
+                    let mut want = [None; LANES];
+                    let mut jit = [0.0; LANES];
+                    for (i, (&ray, &px)) in r.iter().zip(&pixels).enumerate() {
+                        want[i] = pk.lane(ray, f32::INFINITY, px, 2, &mut stats);
+                        if let Some(seed) = jitter {
+                            jit[i] = crate::render::rng::pixel_sequence(seed, px.0, px.1, 2)
+                                * frame.step;
+                        }
+                    }
+                    met += want.iter().flatten().count();
+                    let mut levels = vec![set_up_avx2 as unsafe fn(&_, &_, &_, &mut _) -> u64];
+                    if avx512 {
+                        levels.push(set_up_avx512);
+                    }
+                    for set_up in levels {
+                        let mut got = [None; LANES];
+                        // SAFETY: the CPU has the instructions (checked above).
+                        let hits = unsafe { set_up(&g, r, &jit, &mut got) };
+                        // Compared as printed: `-0.0` and `0.0` differ there.
+                        assert_eq!(
+                            format!("{got:?}"),
+                            format!("{want:?}"),
+                            "rays {at}..{}",
+                            at + n
+                        );
+                        assert_eq!(hits, stats.rays_hit, "rays {at}..{}", at + n);
+                    }
+                    at += n;
+                }
+                // The rays exercise both outcomes.
+                assert!(met > 100 && met < rays.len() - 50, "{met} lanes set up");
+            }
+        }
+    }
+}
