@@ -117,11 +117,11 @@ pub(super) trait Simd: Copy {
 #[derive(Clone, Copy)]
 pub(super) struct W8<const LOADS: bool>;
 
-/// Sixteen lanes in AVX-512 registers. `LOADS`: the voxels' gathers and
-/// the table rows fetched by one scalar load per lane (sixteen 128-bit
-/// row loads and a transpose for the rows), which AMD's Zen 5 runs much
-/// faster than its AVX-512 gathers (see [`super::gathers_by_loads`]); the
-/// same values either way.
+/// Sixteen lanes in AVX-512 registers. `LOADS`: every gather (voxels,
+/// 64-bit pairs, the walks' floats) and the table rows fetched by one
+/// scalar load per lane (sixteen 128-bit row loads and a transpose for the
+/// rows), which AMD's Zen 5 runs much faster than its AVX-512 gathers
+/// (see [`super::gathers_by_loads`]); the same values either way.
 #[derive(Clone, Copy)]
 pub(super) struct W16<const LOADS: bool>;
 

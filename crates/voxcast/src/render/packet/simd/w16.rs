@@ -247,6 +247,11 @@ impl<const LOADS: bool> Simd for W16<LOADS> {
     }
     #[inline(always)]
     unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: I16) -> F16 {
+        if LOADS {
+            return F16(_mm512_castsi512_ps(
+                Self::gather::<SCALE>(p as *const i32, idx).0,
+            ));
+        }
         F16(_mm512_i32gather_ps::<SCALE>(idx.0, p))
     }
     #[inline(always)]
