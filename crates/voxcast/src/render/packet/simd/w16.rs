@@ -279,6 +279,9 @@ impl<const LOADS: bool> Simd for W16<LOADS> {
     #[inline(always)]
     unsafe fn rows(table: *const f32, i4: I16) -> [F16; 4] {
         if LOADS {
+            // Each lane's row in one 16-byte load, four to a register
+            // (lanes a, a + 4, a + 8, a + 12 in its 128-bit quarters), then
+            // a 4×4 transpose in each quarter: lane order comes out whole.
             let ix = Self::store_i(i4);
             let (a0, a1, a2, a3) = (
                 quad(table, &ix, 0),
