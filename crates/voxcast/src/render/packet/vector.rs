@@ -678,7 +678,7 @@ unsafe fn march<
             if bits != 0 {
                 let (ended, dead) = match (vl.as_mut(), vw.as_mut()) {
                     (Some(vl), _) => vl.next(pk, need, &mut rr, &mut kv, &mut col),
-                    (None, Some(vw)) => vw.next(pk, need, &mut rr, &mut kv, &mut col),
+                    (None, Some(vw)) => vw.next(pk, need, live, &mut rr, &mut kv, &mut col),
                     (None, None) => walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col),
                 };
                 live = S::but(live, S::or(ended, dead));

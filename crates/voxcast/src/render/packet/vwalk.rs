@@ -267,6 +267,14 @@ pub(super) struct VWalk<'a, S: Simd> {
     held_ok: S::M,
     held_skip: S::M,
     ended: S::M,
+    /// Each lane's next run, found ahead (`rdy_ok`), or the end of its
+    /// walk (`rdy_fin`); where the pending sample's stretch ends (`rt`)
+    /// when a held block ended it (`rfl`).
+    rdy: Run<S>,
+    rdy_ok: S::M,
+    rdy_fin: S::M,
+    rt: S::F,
+    rfl: S::M,
     // The rays' sample grids' start, and the finest level's step.
     t0: S::F,
     s0: S::F,
@@ -348,6 +356,11 @@ impl<'a, S: Simd> VWalk<'a, S> {
             held_ok: S::from_bits(0),
             held_skip: S::from_bits(0),
             ended: S::from_bits(0),
+            rdy: z,
+            rdy_ok: S::from_bits(0),
+            rdy_fin: S::from_bits(0),
+            rt: S::splat(0.0),
+            rfl: S::from_bits(0),
             t0,
             s0,
         }
@@ -406,31 +419,88 @@ impl<'a, S: Simd> VWalk<'a, S> {
     }
 
     /// The lanes of `need`, past their run: each composites its run's
-    /// last sample over its stretch and walks on to its next run, which
+    /// last sample over its stretch and goes on to its next run, which
     /// `rr` and `kv` then hold. Returns the masks of the lanes whose walk
     /// ended and of those that terminated.
     ///
+    /// A lane's next run is found ahead: when some lane of `need` has
+    /// none ready, every lane of `live` without one walks to its next
+    /// run in the same lock-step iterations ([`VWalk::advance`]), so the
+    /// lanes still sampling do the work their next call would do while
+    /// the walk runs anyway, and fewer calls walk. Each lane's walk and
+    /// compositing are the same operations in the same order as walking
+    /// when it needs the run: the same runs and pixels.
+    ///
     /// # Safety
-    /// The width's instructions; `need` only lanes with a walk.
+    /// The width's instructions; `need` only lanes with a walk, within
+    /// `live`.
     #[inline(always)]
     pub unsafe fn next<T: Voxel, R: Runs<T>>(
         &mut self,
         pk: &Packets<'_, T, R>,
         need: S::M,
+        live: S::M,
         rr: &mut RunRegs<S>,
         kv: &mut S::F,
         col: &mut [S::F; 4],
     ) -> (S::M, S::M) {
+        let none = S::from_bits(0);
+        let ready = S::or(self.rdy_ok, self.rdy_fin);
+        if S::bits(S::but(need, ready)) != 0 {
+            self.advance(S::but(S::or(need, live), ready));
+        }
+        // The pending sample's stretch ends where a held block started
+        // the next run, or at the exit where the walk is over.
+        let mut dead = none;
+        let h = S::and(need, self.rfl);
+        if S::bits(h) != 0 {
+            dead = flush_lanes(pk, h, self.rt, false, rr, col);
+        }
+        self.rfl = S::but(self.rfl, need);
+        let found = S::but(S::and(need, self.rdy_ok), dead);
+        let fin = S::but(S::and(need, self.rdy_fin), dead);
+        self.rdy_ok = S::but(self.rdy_ok, need);
+        self.rdy_fin = S::but(self.rdy_fin, need);
+        let mut ended = none;
+        if S::bits(fin) != 0 {
+            let d = flush_lanes(pk, fin, self.t_end, true, rr, col);
+            dead = S::or(dead, d);
+            ended = S::but(fin, d);
+        }
+        // Each pending sample is now composited.
+        rr.pend_ok = S::but(rr.pend_ok, need);
+        // The runs handed out.
+        let out = self.rdy;
+        *kv = S::blend(found, *kv, out[1]);
+        rr.kend = S::blend(found, rr.kend, out[2]);
+        rr.stv = S::blend(found, rr.stv, self.step(S::keep(found, out[0])));
+        let off = S::mullo(S::to_i(out[0]), S::splat_i((LUT_SIZE * 4) as i32));
+        rr.offv = S::blend_i(found, rr.offv, off);
+        rr.capv = S::blend(found, rr.capv, out[3]);
+        rr.fresh = S::or(rr.fresh, found);
+        (ended, dead)
+    }
+
+    /// The lanes of `m` (none with a run or end ready) walk to their next
+    /// run (`rdy`, `rdy_ok`) or to the end of their walk (`rdy_fin`),
+    /// `RunWalk::next` operation for operation; a lane whose held block
+    /// starts it notes where the pending sample's stretch ends (`rt`,
+    /// `rfl`).
+    ///
+    /// # Safety
+    /// The width's instructions; `m` only lanes with a walk.
+    #[inline(always)]
+    unsafe fn advance(&mut self, mut m: S::M) {
         let zero = S::splat(0.0);
         let none = S::from_bits(0);
         // A held block: the pending sample's stretch ends at its first
         // sample, whether or not it is skipped; then it is the current run
         // unless skipped.
-        let mut dead = none;
-        let h = S::and(need, self.held_ok);
+        let h = S::and(m, self.held_ok);
         if S::bits(h) != 0 {
             let t_next = self.t0 + self.held[1] * self.step(self.held[0]);
-            dead = flush_lanes(pk, h, t_next, false, rr, col);
+            self.rt = S::blend(h, self.rt, t_next);
+            self.rfl = S::or(self.rfl, h);
             let take = S::but(h, self.held_skip);
             for (c, v) in self.cur.iter_mut().zip(self.held) {
                 *c = S::blend(take, *c, v);
@@ -438,9 +508,8 @@ impl<'a, S: Simd> VWalk<'a, S> {
             self.cur_ok = S::or(self.cur_ok, take);
             self.held_ok = S::but(self.held_ok, h);
         }
-        let mut m = S::but(need, dead);
         let (mut found, mut fin) = (none, none);
-        let mut out: Run<S> = [zero; 4];
+        let mut out: Run<S> = self.rdy;
         loop {
             // Walks that are over hand out their current run, or finish.
             let over = S::and(m, S::or(self.ended, S::ge(self.w.t, self.w.t_out)));
@@ -511,24 +580,9 @@ impl<'a, S: Simd> VWalk<'a, S> {
             }
             self.cur_ok = S::or(S::but(self.cur_ok, hand), start);
         }
-        // Finished walks: the pending sample's stretch runs to the exit.
-        let mut ended = none;
-        if S::bits(fin) != 0 {
-            let d = flush_lanes(pk, fin, self.t_end, true, rr, col);
-            dead = S::or(dead, d);
-            ended = S::but(fin, d);
-        }
-        // Each pending sample is now composited.
-        rr.pend_ok = S::but(rr.pend_ok, need);
-        // The runs handed out.
-        *kv = S::blend(found, *kv, out[1]);
-        rr.kend = S::blend(found, rr.kend, out[2]);
-        rr.stv = S::blend(found, rr.stv, self.step(S::keep(found, out[0])));
-        let off = S::mullo(S::to_i(out[0]), S::splat_i((LUT_SIZE * 4) as i32));
-        rr.offv = S::blend_i(found, rr.offv, off);
-        rr.capv = S::blend(found, rr.capv, out[3]);
-        rr.fresh = S::or(rr.fresh, found);
-        (ended, dead)
+        self.rdy = out;
+        self.rdy_ok = S::or(self.rdy_ok, found);
+        self.rdy_fin = S::or(self.rdy_fin, fin);
     }
 }
 
