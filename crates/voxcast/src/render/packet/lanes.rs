@@ -15,6 +15,7 @@
 
 use super::simd::{Simd, W16, W8};
 use super::{Lane, LANES};
+use crate::camera::ImagePlane;
 use glam::Vec3;
 
 /// What the set-up reads of a render (the fields of its `Frame` and the
@@ -205,6 +206,84 @@ pub(super) unsafe fn set_up_avx512(
     set_up::<W16<false>>(g, rays, jit, lanes)
 }
 
+/// [`Camera::ray`] for each pixel of `pixels` into `rays` (as many),
+/// `S::N` at a time: its operations in its order — multiplications,
+/// additions, divisions and the square root round the same in a lane as
+/// in a scalar register — so the same bits.
+///
+/// # Safety
+/// The width's instructions.
+///
+/// [`Camera::ray`]: crate::camera::Camera::ray
+#[inline(always)]
+unsafe fn camera_rays<S: Simd>(c: &ImagePlane, pixels: &[(u32, u32)], rays: &mut [(Vec3, Vec3)]) {
+    debug_assert!(rays.len() == pixels.len());
+    for base in (0..pixels.len()).step_by(S::N) {
+        let n = (pixels.len() - base).min(S::N);
+        let (mut px, mut py) = (S::Af::default(), S::Af::default());
+        for (i, &(x, y)) in pixels[base..base + n].iter().enumerate() {
+            px[i] = x as f32 + 0.5;
+            py[i] = y as f32 + 0.5;
+        }
+        let (one, two) = (S::splat(1.0), S::splat(2.0));
+        let hh = S::splat(c.half_height);
+        let sx = (two * S::load(px) / S::splat(c.width) - one) * hh * S::splat(c.aspect);
+        let sy = (one - two * S::load(py) / S::splat(c.height)) * hh;
+        // `b + right·sx + up·sy`: the direction's (perspective) or the
+        // origin's (orthographic), component by component.
+        let b = if c.orthographic { c.eye } else { c.forward };
+        let (r, u) = (c.right, c.up);
+        let v = [
+            S::splat(b.x) + S::splat(r.x) * sx + S::splat(u.x) * sy,
+            S::splat(b.y) + S::splat(r.y) * sx + S::splat(u.y) * sy,
+            S::splat(b.z) + S::splat(r.z) * sx + S::splat(u.z) * sy,
+        ];
+        if c.orthographic {
+            let o = [S::store(v[0]), S::store(v[1]), S::store(v[2])];
+            for (i, ray) in rays[base..base + n].iter_mut().enumerate() {
+                *ray = (Vec3::new(o[0][i], o[1][i], o[2][i]), c.forward);
+            }
+        } else {
+            // glam's `normalize`: times the reciprocal of the length.
+            let inv = one / S::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            let d = [
+                S::store(v[0] * inv),
+                S::store(v[1] * inv),
+                S::store(v[2] * inv),
+            ];
+            for (i, ray) in rays[base..base + n].iter_mut().enumerate() {
+                *ray = (c.eye, Vec3::new(d[0][i], d[1][i], d[2][i]));
+            }
+        }
+    }
+}
+
+/// [`camera_rays`] in AVX2 registers, eight rays at a time.
+///
+/// # Safety
+/// AVX2 and FMA present.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn camera_rays_avx2(
+    c: &ImagePlane,
+    pixels: &[(u32, u32)],
+    rays: &mut [(Vec3, Vec3)],
+) {
+    camera_rays::<W8<false>>(c, pixels, rays)
+}
+
+/// [`camera_rays`] in AVX-512 registers, sixteen rays at once.
+///
+/// # Safety
+/// AVX2, FMA and AVX-512 F present.
+#[target_feature(enable = "avx2,fma,avx512f")]
+pub(super) unsafe fn camera_rays_avx512(
+    c: &ImagePlane,
+    pixels: &[(u32, u32)],
+    rays: &mut [(Vec3, Vec3)],
+) {
+    camera_rays::<W16<false>>(c, pixels, rays)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -363,5 +442,61 @@ mod tests {
                 assert!(met > 100 && met < rays.len() - 50, "{met} lanes set up");
             }
         }
+    }
+
+    /// The cameras' rays in vector registers are `Camera::ray`'s, bit for
+    /// bit: perspective and orthographic, from several sides, every pixel
+    /// of an image whose rows split into packets of every length.
+    #[test]
+    fn vector_camera_rays_are_the_cameras_bit_for_bit() {
+        use crate::camera::{Camera, CameraParams, Projection};
+        if !std::arch::is_x86_feature_detected!("avx2")
+            || !std::arch::is_x86_feature_detected!("fma")
+        {
+            return;
+        }
+        let avx512 = std::arch::is_x86_feature_detected!("avx512f");
+        let (lo, hi) = (Vec3::new(-1.3, 0.2, -0.7), Vec3::new(2.9, 1.7, 3.1));
+        let (w, h) = (37, 23);
+        let mut checked = 0;
+        for projection in [Projection::Perspective, Projection::Orthographic] {
+            for (azimuth, elevation, zoom) in
+                [(0.0, 0.0, 1.0), (30.0, 20.0, 1.7), (-117.0, -63.0, 0.6)]
+            {
+                let params = CameraParams {
+                    projection,
+                    azimuth,
+                    elevation,
+                    zoom,
+                    ..CameraParams::default()
+                };
+                let cam = Camera::fit(&params, lo, hi, w, h);
+                let plane = cam.plane();
+                let pixels: Vec<(u32, u32)> =
+                    (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).collect();
+                for len in 1..=LANES {
+                    for chunk in pixels.chunks(len) {
+                        let want: Vec<_> = chunk.iter().map(|&(x, y)| cam.ray(x, y)).collect();
+                        let mut levels = vec![camera_rays_avx2 as unsafe fn(&_, &_, &mut _)];
+                        if avx512 {
+                            levels.push(camera_rays_avx512);
+                        }
+                        for rays_of in levels {
+                            let mut got = vec![(Vec3::ZERO, Vec3::ZERO); chunk.len()];
+                            // SAFETY: the CPU has the instructions (checked above).
+                            unsafe { rays_of(&plane, chunk, &mut got) };
+                            // Compared as printed: `-0.0` and `0.0` differ there.
+                            assert_eq!(
+                                format!("{got:?}"),
+                                format!("{want:?}"),
+                                "{projection:?} {chunk:?}"
+                            );
+                            checked += chunk.len();
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked >= 2 * 3 * 16 * (37 * 23) as usize);
     }
 }

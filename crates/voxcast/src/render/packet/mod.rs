@@ -465,6 +465,27 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         })
     }
 
+    /// The camera's rays through `pixels` (at most [`LANES`]) into
+    /// `rays`: [`crate::camera::Camera::ray`]'s, to the bit, computed in
+    /// vector registers ([`lanes::camera_rays_avx2`]).
+    #[cfg(target_arch = "x86_64")]
+    pub fn camera_rays(
+        &self,
+        plane: &crate::camera::ImagePlane,
+        pixels: &[(u32, u32)],
+        rays: &mut [(Vec3, Vec3)],
+    ) {
+        // SAFETY: `level` checked the CPU before any packet was made.
+        unsafe {
+            match self.level {
+                Level::Avx2 | Level::Avx2Loads => lanes::camera_rays_avx2(plane, pixels, rays),
+                Level::Avx512 | Level::Avx512Loads => {
+                    lanes::camera_rays_avx512(plane, pixels, rays)
+                }
+            }
+        }
+    }
+
     /// What [`lanes`]' set-up reads of the render.
     #[cfg(target_arch = "x86_64")]
     fn geometry(&self) -> lanes::Geometry {
