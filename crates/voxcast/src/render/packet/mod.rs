@@ -603,38 +603,40 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 }
             };
         }
-        let scalar = rays.iter().zip(pixels).enumerate();
-        for (i, (&r, &pixel)) in scalar.filter(|_| !vector_set_up) {
-            let hit = surface::first_hit(
-                self.f,
-                self.surface.as_ref(),
-                r.0,
-                r.1,
-                &mut stats.interpolations,
-            );
-            behind[i] = hit.map(|(_, rgb)| rgb);
-            let limit = hit.map_or(f32::INFINITY, |(t, _)| t);
-            lanes[i] = if R::ON {
-                self.run_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
-                    runs[i] = Some(w);
-                    l
-                })
-            } else if self.thr.is_some() {
-                self.thr_lane(r, limit, pixel, pass, stats).map(|(l, e)| {
-                    ends[i] = e;
-                    l
-                })
-            } else if self.imp.is_some() {
-                self.imp_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
-                    imp[i] = Some(w);
-                    l
-                })
-            } else {
-                self.lane(r, limit, pixel, pass, stats)
-            };
-            // A ray with nothing to sample shows its surface alone.
-            if let (None, Some(rgb)) = (lanes[i], behind[i]) {
-                out[i] += rgb.extend(1.0);
+        // Otherwise ray by ray.
+        if !vector_set_up {
+            for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
+                let hit = surface::first_hit(
+                    self.f,
+                    self.surface.as_ref(),
+                    r.0,
+                    r.1,
+                    &mut stats.interpolations,
+                );
+                behind[i] = hit.map(|(_, rgb)| rgb);
+                let limit = hit.map_or(f32::INFINITY, |(t, _)| t);
+                lanes[i] = if R::ON {
+                    self.run_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
+                        runs[i] = Some(w);
+                        l
+                    })
+                } else if self.thr.is_some() {
+                    self.thr_lane(r, limit, pixel, pass, stats).map(|(l, e)| {
+                        ends[i] = e;
+                        l
+                    })
+                } else if self.imp.is_some() {
+                    self.imp_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
+                        imp[i] = Some(w);
+                        l
+                    })
+                } else {
+                    self.lane(r, limit, pixel, pass, stats)
+                };
+                // A ray with nothing to sample shows its surface alone.
+                if let (None, Some(rgb)) = (lanes[i], behind[i]) {
+                    out[i] += rgb.extend(1.0);
+                }
             }
         }
         if lanes.iter().all(Option::is_none) {
