@@ -14,7 +14,7 @@
 //! rule, `f32::min` another ([`fmin`]).
 
 use super::simd::{Simd, W16, W8};
-use super::{Lane, LANES};
+use super::{Lane, WalkStart, LANES};
 use crate::camera::ImagePlane;
 use glam::Vec3;
 
@@ -29,6 +29,9 @@ pub(super) struct Geometry {
     pub occupied: Option<(Vec3, Vec3)>,
     /// The step in voxel-space ray units.
     pub st: f32,
+    /// The block grid the step-per-block marches walk.
+    pub block_size: usize,
+    pub block_counts: [usize; 3],
 }
 
 /// `f32::min` as x86-64 builds it: where `a` is NaN, `b`; else the
@@ -80,6 +83,83 @@ unsafe fn index<S: Simd>(x: S::F) -> S::F {
     S::max(S::ceil(x), S::splat(0.0))
 }
 
+/// A packet's rays in registers, as the set-ups take them: voxel-space
+/// origins and directions, the directions' reciprocals, the lanes' grid
+/// offsets; their entry into and exit from the volume's box, the lanes
+/// that meet it; and the stretch that meets the occupied box and the lanes
+/// that meet that (the whole ray, without one).
+struct Rays<S: Simd> {
+    o: [S::F; 3],
+    d: [S::F; 3],
+    inv_d: [S::F; 3],
+    jit: S::F,
+    t_in: S::F,
+    t_out: S::F,
+    hit: S::M,
+    walk: (S::F, S::F),
+    ok: S::M,
+}
+
+/// `rays[base..base + n]` (`n ≤ S::N`) with their offsets `jit`, as
+/// `Packets::setup` computes them ray by ray.
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+unsafe fn rays_at<S: Simd>(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    base: usize,
+    n: usize,
+) -> Rays<S> {
+    let mut a = [S::Af::default(); 7];
+    for (i, (o, d)) in rays[base..base + n].iter().enumerate() {
+        a[0][i] = o.x;
+        a[1][i] = o.y;
+        a[2][i] = o.z;
+        a[3][i] = d.x;
+        a[4][i] = d.y;
+        a[5][i] = d.z;
+        a[6][i] = jit[base + i];
+    }
+    // Voxel space: `(origin − origin_w) · inv_spacing`, `dir · inv_spacing`.
+    let (ow, is) = (g.origin_w, g.inv_spacing);
+    let o = [
+        (S::load(a[0]) - S::splat(ow.x)) * S::splat(is.x),
+        (S::load(a[1]) - S::splat(ow.y)) * S::splat(is.y),
+        (S::load(a[2]) - S::splat(ow.z)) * S::splat(is.z),
+    ];
+    let d = [
+        S::load(a[3]) * S::splat(is.x),
+        S::load(a[4]) * S::splat(is.y),
+        S::load(a[5]) * S::splat(is.z),
+    ];
+    let one = S::splat(1.0);
+    let inv_d = [one / d[0], one / d[1], one / d[2]];
+    let (t_in, t_out, hit) = intersect::<S>(o, inv_d, g.box_lo, g.box_hi);
+    let hit = S::and(hit, S::from_bits((1u32 << n) - 1));
+    let (w0, w1, ok) = match g.occupied {
+        Some((lo, hi)) => {
+            let (a0, b0, m) = intersect::<S>(o, inv_d, lo, hi);
+            let (a0, b0) = (fmax::<S>(a0, t_in), fmin::<S>(b0, t_out));
+            (a0, b0, S::and(hit, S::and(m, S::lt(a0, b0))))
+        }
+        None => (t_in, t_out, hit),
+    };
+    Rays {
+        o,
+        d,
+        inv_d,
+        jit: S::load(a[6]),
+        t_in,
+        t_out,
+        hit,
+        walk: (w0, w1),
+        ok,
+    }
+}
+
 /// Sets up `lanes[..rays.len()]` as `Packets::lane` does for rays that no
 /// surface stops (`rays`: world origin and unit direction; `jit[i]`: lane
 /// `i`'s grid offset, its jitter times the step, 0 without jitter).
@@ -97,43 +177,19 @@ unsafe fn set_up<S: Simd>(
     let mut hits = 0;
     for base in (0..rays.len()).step_by(S::N) {
         let n = (rays.len() - base).min(S::N);
-        let mut a = [S::Af::default(); 7];
-        for (i, (o, d)) in rays[base..base + n].iter().enumerate() {
-            a[0][i] = o.x;
-            a[1][i] = o.y;
-            a[2][i] = o.z;
-            a[3][i] = d.x;
-            a[4][i] = d.y;
-            a[5][i] = d.z;
-            a[6][i] = jit[base + i];
-        }
-        // Voxel space: `(origin − origin_w) · inv_spacing`, `dir · inv_spacing`.
-        let (ow, is) = (g.origin_w, g.inv_spacing);
-        let o = [
-            (S::load(a[0]) - S::splat(ow.x)) * S::splat(is.x),
-            (S::load(a[1]) - S::splat(ow.y)) * S::splat(is.y),
-            (S::load(a[2]) - S::splat(ow.z)) * S::splat(is.z),
-        ];
-        let d = [
-            S::load(a[3]) * S::splat(is.x),
-            S::load(a[4]) * S::splat(is.y),
-            S::load(a[5]) * S::splat(is.z),
-        ];
-        let one = S::splat(1.0);
-        let inv_d = [one / d[0], one / d[1], one / d[2]];
-        let (t_in, t_out, hit) = intersect::<S>(o, inv_d, g.box_lo, g.box_hi);
-        let lanes_n = S::from_bits((1u32 << n) - 1);
-        let hit = S::and(hit, lanes_n);
+        let Rays {
+            o,
+            d,
+            jit,
+            t_in,
+            t_out,
+            hit,
+            walk: (w0, w1),
+            ok,
+            ..
+        } = rays_at::<S>(g, rays, jit, base, n);
         hits += S::bits(hit).count_ones() as u64;
-        let (w0, w1, ok) = match g.occupied {
-            Some((lo, hi)) => {
-                let (a0, b0, m) = intersect::<S>(o, inv_d, lo, hi);
-                let (a0, b0) = (fmax::<S>(a0, t_in), fmin::<S>(b0, t_out));
-                (a0, b0, S::and(hit, S::and(m, S::lt(a0, b0))))
-            }
-            None => (t_in, t_out, hit),
-        };
-        let t0 = t_in + S::load(a[6]);
+        let t0 = t_in + jit;
         let st = S::splat(g.st);
         let k0 = index::<S>((w0 - t0) / st);
         let n1 = index::<S>((t_out - t0) / st);
@@ -176,6 +232,144 @@ unsafe fn set_up<S: Simd>(
         }
     }
     hits
+}
+
+/// `BlockWalker::new` on one axis for rays starting at `t`: the block
+/// the walk starts in (a whole number as a float) and where the ray
+/// leaves it (∞ where it does not move on the axis).
+#[inline(always)]
+unsafe fn first_block<S: Simd>(
+    o: S::F,
+    d: S::F,
+    inv_d: S::F,
+    t: S::F,
+    size: f32,
+    count: usize,
+) -> (S::F, S::F) {
+    let (zero, one, b) = (S::splat(0.0), S::splat(1.0), S::splat(size));
+    let q = (o + d * t) / b;
+    let (up, down) = (S::gt(d, zero), S::lt(d, zero));
+    // On a boundary, a ray going down belongs to the block below.
+    let c = S::blend(down, S::floor(q), S::ceil(q) - one);
+    // The cast to a whole number takes NaN to 0; then the clamp.
+    let c = S::blend(S::eq(c, c), zero, c);
+    let c = S::min(S::max(c, zero), S::splat(count as f32 - 1.0));
+    // `crossing`: the far plane's `(plane − o)·(1/d)`.
+    let plane = S::blend(up, c, c + one);
+    let tm = (plane * b - o) * inv_d;
+    (c, S::blend(S::or(up, down), S::splat(f32::INFINITY), tm))
+}
+
+/// Sets up `lanes[..rays.len()]` and their block walks `starts` as
+/// `Packets::run_lane` and `RunWalk::new` do for the step-per-block
+/// marches' rays that no surface stops (the arguments as [`set_up`]'s).
+/// Returns how many rays met the volume's box.
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+unsafe fn set_up_runs<S: Simd>(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+    starts: &mut [Option<WalkStart>; LANES],
+) -> u64 {
+    let mut hits = 0;
+    let (size, counts) = (g.block_size as f32, g.block_counts);
+    for base in (0..rays.len()).step_by(S::N) {
+        let n = (rays.len() - base).min(S::N);
+        let Rays {
+            o,
+            d,
+            inv_d,
+            jit,
+            t_in,
+            t_out,
+            hit,
+            walk: (w0, w1),
+            ok,
+        } = rays_at::<S>(g, rays, jit, base, n);
+        hits += S::bits(hit).count_ones() as u64;
+        let t0 = t_in + jit;
+        let t_end = t_out + (t0 - t_in);
+        let (bx, tx) = first_block::<S>(o[0], d[0], inv_d[0], w0, size, counts[0]);
+        let (by, ty) = first_block::<S>(o[1], d[1], inv_d[1], w0, size, counts[1]);
+        let (bz, tz) = first_block::<S>(o[2], d[2], inv_d[2], w0, size, counts[2]);
+        let ok = S::bits(ok);
+        let v = [
+            S::store(o[0]),
+            S::store(o[1]),
+            S::store(o[2]),
+            S::store(d[0]),
+            S::store(d[1]),
+            S::store(d[2]),
+            S::store(t0),
+            S::store(t_end),
+            S::store(w0),
+            S::store(w1),
+            S::store(t_out),
+            S::store(bx),
+            S::store(by),
+            S::store(bz),
+            S::store(tx),
+            S::store(ty),
+            S::store(tz),
+        ];
+        for (i, (_, dir)) in rays[base..base + n].iter().enumerate() {
+            if ok >> i & 1 == 0 {
+                lanes[base + i] = None;
+                starts[base + i] = None;
+                continue;
+            }
+            lanes[base + i] = Some(Lane::walking(
+                Vec3::new(v[0][i], v[1][i], v[2][i]),
+                Vec3::new(v[3][i], v[4][i], v[5][i]),
+                -*dir,
+                v[6][i],
+                v[7][i],
+            ));
+            starts[base + i] = Some(WalkStart {
+                block: [v[11][i] as i64, v[12][i] as i64, v[13][i] as i64],
+                t_max: [v[14][i], v[15][i], v[16][i]],
+                t: v[8][i],
+                t_out: v[10][i],
+                t_stop: v[9][i],
+                t_end: v[7][i],
+            });
+        }
+    }
+    hits
+}
+
+/// [`set_up_runs`] in AVX2 registers, eight lanes at a time.
+///
+/// # Safety
+/// AVX2 and FMA present.
+#[target_feature(enable = "avx2,fma")]
+pub(super) unsafe fn set_up_runs_avx2(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+    starts: &mut [Option<WalkStart>; LANES],
+) -> u64 {
+    set_up_runs::<W8<false>>(g, rays, jit, lanes, starts)
+}
+
+/// [`set_up_runs`] in AVX-512 registers, sixteen lanes at once.
+///
+/// # Safety
+/// AVX2, FMA and AVX-512 F present.
+#[target_feature(enable = "avx2,fma,avx512f")]
+pub(super) unsafe fn set_up_runs_avx512(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+    starts: &mut [Option<WalkStart>; LANES],
+) -> u64 {
+    set_up_runs::<W16<false>>(g, rays, jit, lanes, starts)
 }
 
 /// [`set_up`] in AVX2 registers, eight lanes at a time.
@@ -335,6 +529,8 @@ mod tests {
 
     #[test]
     fn vector_set_up_gives_the_scalar_lanes_bit_for_bit() {
+        // (And the step-per-block marches' lanes with their walks'
+        // starts: `Packets::run_lane` and `RunWalk::new`'s.)
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
         if !avx2 {
             return;
@@ -399,7 +595,7 @@ mod tests {
                     surface: None,
                 };
                 let g = pk.geometry();
-                let mut met = 0;
+                let (mut met, mut walked) = (0, 0);
                 // Packets of every size from 1 to 16.
                 let mut at = 0;
                 for (k, n) in (1..=LANES).cycle().enumerate() {
@@ -436,10 +632,42 @@ mod tests {
                         );
                         assert_eq!(hits, stats.rays_hit, "rays {at}..{}", at + n);
                     }
+                    // The step-per-block marches' lanes and walks.
+                    let mut stats = RenderStats::default();
+                    let mut want = [None; LANES];
+                    for (i, (&ray, &px)) in r.iter().zip(&pixels).enumerate() {
+                        want[i] = pk
+                            .run_lane(ray, f32::INFINITY, px, 2, &mut stats)
+                            .map(|(l, w)| (l, WalkStart::of(&w)));
+                    }
+                    walked += want.iter().flatten().count();
+                    let mut levels =
+                        vec![set_up_runs_avx2 as unsafe fn(&_, &_, &_, &mut _, &mut _) -> u64];
+                    if avx512 {
+                        levels.push(set_up_runs_avx512);
+                    }
+                    for set_up_runs in levels {
+                        let (mut lanes, mut starts) = ([None; LANES], [None; LANES]);
+                        // SAFETY: the CPU has the instructions (checked above).
+                        let hits = unsafe { set_up_runs(&g, r, &jit, &mut lanes, &mut starts) };
+                        let got: Vec<_> =
+                            lanes.iter().zip(&starts).map(|(l, s)| l.zip(*s)).collect();
+                        assert_eq!(
+                            format!("{got:?}"),
+                            format!("{want:?}"),
+                            "walks of rays {at}..{}",
+                            at + n
+                        );
+                        assert_eq!(hits, stats.rays_hit, "rays {at}..{}", at + n);
+                    }
                     at += n;
                 }
                 // The rays exercise both outcomes.
                 assert!(met > 100 && met < rays.len() - 50, "{met} lanes set up");
+                assert!(
+                    walked >= met && walked < rays.len() - 50,
+                    "{walked} walks set up"
+                );
             }
         }
     }

@@ -85,6 +85,7 @@ pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
 pub(in crate::render) use lod::VLodParams;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
+use runs::WalkStart;
 pub(in crate::render) use threshold::Thr;
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
@@ -357,6 +358,9 @@ pub(super) fn shades(bp: &BlinnPhong) -> bool {
 struct State<'s> {
     imp: &'s mut [Option<ImpLane>],
     runs: &'s mut [Option<RunWalk>],
+    /// The step-per-block lanes' walks where set up in vector registers
+    /// (`runs` then holds none).
+    starts: &'s [Option<WalkStart>],
     acc: &'s mut [Vec4],
     count: &'s mut [[u32; 3]],
     alive: &'s mut [bool],
@@ -372,6 +376,7 @@ impl State<'_> {
         State {
             imp: &mut self.imp[r.clone()],
             runs: &mut self.runs[r.clone()],
+            starts: &self.starts[r.clone()],
             acc: &mut self.acc[r.clone()],
             count: &mut self.count[r.clone()],
             alive: &mut self.alive[r.clone()],
@@ -497,6 +502,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             box_hi: f.box_hi,
             occupied: f.occupied,
             st: self.st,
+            block_size: f.block_size,
+            block_counts: f.block_counts,
         }
     }
 
@@ -576,9 +583,18 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut ends = [[0.0f32; 2]; LANES];
         // A fixed step with no surface: the lanes set up in vector
         // registers ([`lanes`]).
+        // A step-per-block march whose walks run in vector registers, with
+        // no surface: the lanes and where their walks start, likewise.
+        let mut starts: [Option<WalkStart>; LANES] = [None; LANES];
         #[cfg(target_arch = "x86_64")]
-        let vector_set_up =
-            !R::ON && self.thr.is_none() && self.imp.is_none() && self.surface.is_none();
+        let vector_runs = R::ON
+            && self.surface.is_none()
+            && self
+                .runs
+                .is_some_and(|r| r.vector().is_some() || r.lod().is_some());
+        #[cfg(target_arch = "x86_64")]
+        let vector_set_up = vector_runs
+            || (!R::ON && self.thr.is_none() && self.imp.is_none() && self.surface.is_none());
         #[cfg(not(target_arch = "x86_64"))]
         let vector_set_up = false;
         #[cfg(target_arch = "x86_64")]
@@ -593,12 +609,18 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             stats.rays += rays.len() as u64;
             // SAFETY: `level` checked the CPU before any packet was made.
             stats.rays_hit += unsafe {
-                match self.level {
-                    Level::Avx2 | Level::Avx2Loads => {
+                match (self.level, vector_runs) {
+                    (Level::Avx2 | Level::Avx2Loads, false) => {
                         lanes::set_up_avx2(&g, rays, &jit, &mut lanes)
                     }
-                    Level::Avx512 | Level::Avx512Loads => {
+                    (Level::Avx512 | Level::Avx512Loads, false) => {
                         lanes::set_up_avx512(&g, rays, &jit, &mut lanes)
+                    }
+                    (Level::Avx2 | Level::Avx2Loads, true) => {
+                        lanes::set_up_runs_avx2(&g, rays, &jit, &mut lanes, &mut starts)
+                    }
+                    (Level::Avx512 | Level::Avx512Loads, true) => {
+                        lanes::set_up_runs_avx512(&g, rays, &jit, &mut lanes, &mut starts)
                     }
                 }
             };
@@ -649,6 +671,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut st = State {
             imp: &mut imp,
             runs: &mut runs,
+            starts: &starts,
             acc: &mut acc,
             count: &mut count,
             alive: &mut alive,
@@ -710,6 +733,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut st = State {
             imp: &mut imp,
             runs: &mut runs,
+            starts: &[None; LANES],
             acc,
             count,
             alive,

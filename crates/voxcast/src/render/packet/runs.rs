@@ -175,3 +175,38 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         Some((lane, RunWalk::new(f, seg)))
     }
 }
+
+/// Where a step-per-block lane's walk starts, where its lanes were set
+/// up in vector registers (`lanes::set_up_runs`) instead of with a
+/// [`RunWalk`] each: what the vector walks read of one
+/// ([`WalkStart::of`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct WalkStart {
+    /// The block it starts in (per axis) and where it leaves it on each
+    /// axis (`BlockWalker::state`).
+    pub block: [i64; 3],
+    pub t_max: [f32; 3],
+    /// Where the walk starts and ends (`Segment::walk.0`, `t_out`).
+    pub t: f32,
+    pub t_out: f32,
+    /// Where its stretch with samples ends (`Segment::walk.1`), and its
+    /// ray's samples (`Segment::t_end`).
+    pub t_stop: f32,
+    pub t_end: f32,
+}
+
+impl WalkStart {
+    /// The start of `w`'s walk.
+    #[cfg(target_arch = "x86_64")]
+    pub(super) fn of(w: &RunWalk) -> WalkStart {
+        let (block, t_max, t, t_out) = w.walker.state();
+        WalkStart {
+            block,
+            t_max,
+            t,
+            t_out,
+            t_stop: w.seg.walk.1,
+            t_end: w.seg.t_end(),
+        }
+    }
+}

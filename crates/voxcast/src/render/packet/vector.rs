@@ -554,10 +554,12 @@ unsafe fn march<
     let mut live_bits = 0u32;
     for (i, l) in lanes.iter().enumerate() {
         if let Some(l) = l {
-            // `group_size`'s thresholds of the lane's exit.
-            let t_out = match &st.runs[i] {
-                Some(w) if R::ON => w.seg.t_out,
-                _ => 0.0,
+            // `group_size`'s thresholds of the lane's exit (grouped reuse).
+            let t_out = match (&st.runs[i], &st.starts[i]) {
+                _ if !(R::ON && GROUPED) => 0.0,
+                (Some(w), _) => w.seg.t_out,
+                (None, Some(s)) => s.t_out,
+                (None, None) => 0.0,
             };
             let v = [
                 l.o.x,

@@ -19,7 +19,7 @@
 
 use super::simd::Simd;
 use super::walk::{RunRegs, SLOT_W};
-use super::{Packets, Runs, State, LANES};
+use super::{Packets, Runs, State, WalkStart, LANES};
 use crate::render::march::VRule;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
@@ -293,8 +293,8 @@ pub(super) struct Rays<S: Simd> {
     pub t0: S::F,
 }
 
-/// The block walks of the lanes of `st.runs`, each where its `RunWalk`
-/// was set up, on the rays `rays` over `counts` blocks of `size` cells;
+/// The block walks of the lanes of `st.runs` or `st.starts`, each where
+/// its `RunWalk` was set up (or as `lanes::set_up_runs` set it up), on the rays `rays` over `counts` blocks of `size` cells;
 /// and per lane where its walk's stretch with samples ends (`walk.1`) and
 /// its ray's samples end (`Segment::t_end`).
 ///
@@ -309,12 +309,13 @@ pub(super) unsafe fn run_walks<S: Simd>(
 ) -> (VBlocks<S>, S::F, S::F) {
     let mut a = [S::Af::default(); 2];
     let mut lanes: [Option<LaneWalk>; LANES] = [None; LANES];
-    for (i, w) in st.runs.iter().enumerate().take(S::N) {
-        let Some(w) = w else { continue };
-        let (b, tm, t, _) = w.walker.state();
-        lanes[i] = Some((b, tm, t, w.seg.t_out));
-        a[0][i] = w.seg.walk.1;
-        a[1][i] = w.seg.t_end();
+    for (i, (w, s)) in st.runs.iter().zip(st.starts).enumerate().take(S::N) {
+        let Some(s) = w.as_ref().map(WalkStart::of).or(*s) else {
+            continue;
+        };
+        lanes[i] = Some((s.block, s.t_max, s.t, s.t_out));
+        a[0][i] = s.t_stop;
+        a[1][i] = s.t_end;
     }
     (
         VBlocks::new(&lanes, counts, size, rays),
