@@ -84,8 +84,8 @@ use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
 pub(in crate::render) use lod::VLodParams;
-pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 use runs::WalkStart;
+pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 pub(in crate::render) use threshold::Thr;
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
@@ -582,9 +582,10 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         let mut ends = [[0.0f32; 2]; LANES];
         // A fixed step with no surface: the lanes set up in vector
-        // registers ([`lanes`]).
-        // A step-per-block march whose walks run in vector registers, with
-        // no surface: the lanes and where their walks start, likewise.
+        // registers ([`lanes`]); a step-per-block march whose walks run in
+        // vector registers, with no surface: the lanes and where their
+        // walks start (`starts`), likewise.
+        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut starts: [Option<WalkStart>; LANES] = [None; LANES];
         #[cfg(target_arch = "x86_64")]
         let vector_runs = R::ON

@@ -294,9 +294,10 @@ pub(super) struct Rays<S: Simd> {
 }
 
 /// The block walks of the lanes of `st.runs` or `st.starts`, each where
-/// its `RunWalk` was set up (or as `lanes::set_up_runs` set it up), on the rays `rays` over `counts` blocks of `size` cells;
-/// and per lane where its walk's stretch with samples ends (`walk.1`) and
-/// its ray's samples end (`Segment::t_end`).
+/// its `RunWalk` was set up (or as `lanes::set_up_runs` set it up), on
+/// the rays `rays` over `counts` blocks of `size` cells; and per lane
+/// where its walk's stretch with samples ends (`walk.1`) and its ray's
+/// samples end (`Segment::t_end`).
 ///
 /// # Safety
 /// The width's instructions.
