@@ -127,27 +127,13 @@ pub struct Camera {
     pub forward: Vec3,
     pub right: Vec3,
     pub up: Vec3,
-    projection: Projection,
+    pub(crate) projection: Projection,
     /// Half height of the image plane at distance 1 (perspective) or in
     /// world units (orthographic).
-    half_height: f32,
-    aspect: f32,
-    width: u32,
-    height: u32,
-}
-
-/// A camera's image plane, as [`Camera::ray_at`] reads it.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct ImagePlane {
-    pub eye: Vec3,
-    pub forward: Vec3,
-    pub right: Vec3,
-    pub up: Vec3,
-    pub half_height: f32,
-    pub aspect: f32,
-    pub width: f32,
-    pub height: f32,
-    pub orthographic: bool,
+    pub(crate) half_height: f32,
+    pub(crate) aspect: f32,
+    pub(crate) width: u32,
+    pub(crate) height: u32,
 }
 
 impl Camera {
@@ -277,22 +263,6 @@ impl Camera {
         match self.projection {
             Projection::Perspective => 2.0 * self.half_height * z.max(0.0) / self.height as f32,
             Projection::Orthographic => 2.0 * self.half_height / self.height as f32,
-        }
-    }
-
-    /// What [`Camera::ray_at`] reads: for the packets' rays, computed
-    /// sixteen at a time with its operations.
-    pub(crate) fn plane(&self) -> ImagePlane {
-        ImagePlane {
-            eye: self.eye,
-            forward: self.forward,
-            right: self.right,
-            up: self.up,
-            half_height: self.half_height,
-            aspect: self.aspect,
-            width: self.width as f32,
-            height: self.height as f32,
-            orthographic: self.projection == Projection::Orthographic,
         }
     }
 

@@ -748,8 +748,6 @@ impl Job<'_> {
         // voxels they fetch differ less.
         const SIDE: u32 = 4;
         const _: () = assert!((SIDE * SIDE) as usize == packet::LANES);
-        #[cfg(target_arch = "x86_64")]
-        let plane = self.cam.plane();
         let out = tiles::render_whole_tiles(
             p.width,
             p.height,
@@ -770,7 +768,7 @@ impl Job<'_> {
                         }
                         let mut rays = [(Vec3::ZERO, Vec3::ZERO); packet::LANES];
                         #[cfg(target_arch = "x86_64")]
-                        pk.camera_rays(&plane, &pixels[..n], &mut rays[..n]);
+                        pk.camera_rays(&self.cam, &pixels[..n], &mut rays[..n]);
                         #[cfg(not(target_arch = "x86_64"))]
                         for (r, &(x, y)) in rays[..n].iter_mut().zip(&pixels[..n]) {
                             *r = self.cam.ray(x, y);

@@ -15,7 +15,7 @@
 
 use super::simd::{Simd, W16, W8};
 use super::{Lane, WalkStart, LANES};
-use crate::camera::ImagePlane;
+use crate::camera::{Camera, Projection};
 use glam::Vec3;
 
 /// What the set-up reads of a render (the fields of its `Frame` and the
@@ -410,7 +410,7 @@ pub(super) unsafe fn set_up_avx512(
 ///
 /// [`Camera::ray`]: crate::camera::Camera::ray
 #[inline(always)]
-unsafe fn camera_rays<S: Simd>(c: &ImagePlane, pixels: &[(u32, u32)], rays: &mut [(Vec3, Vec3)]) {
+unsafe fn camera_rays<S: Simd>(c: &Camera, pixels: &[(u32, u32)], rays: &mut [(Vec3, Vec3)]) {
     debug_assert!(rays.len() == pixels.len());
     for base in (0..pixels.len()).step_by(S::N) {
         let n = (pixels.len() - base).min(S::N);
@@ -421,18 +421,19 @@ unsafe fn camera_rays<S: Simd>(c: &ImagePlane, pixels: &[(u32, u32)], rays: &mut
         }
         let (one, two) = (S::splat(1.0), S::splat(2.0));
         let hh = S::splat(c.half_height);
-        let sx = (two * S::load(px) / S::splat(c.width) - one) * hh * S::splat(c.aspect);
-        let sy = (one - two * S::load(py) / S::splat(c.height)) * hh;
+        let sx = (two * S::load(px) / S::splat(c.width as f32) - one) * hh * S::splat(c.aspect);
+        let sy = (one - two * S::load(py) / S::splat(c.height as f32)) * hh;
         // `b + right·sx + up·sy`: the direction's (perspective) or the
         // origin's (orthographic), component by component.
-        let b = if c.orthographic { c.eye } else { c.forward };
+        let ortho = c.projection == Projection::Orthographic;
+        let b = if ortho { c.eye } else { c.forward };
         let (r, u) = (c.right, c.up);
         let v = [
             S::splat(b.x) + S::splat(r.x) * sx + S::splat(u.x) * sy,
             S::splat(b.y) + S::splat(r.y) * sx + S::splat(u.y) * sy,
             S::splat(b.z) + S::splat(r.z) * sx + S::splat(u.z) * sy,
         ];
-        if c.orthographic {
+        if ortho {
             let o = [S::store(v[0]), S::store(v[1]), S::store(v[2])];
             for (i, ray) in rays[base..base + n].iter_mut().enumerate() {
                 *ray = (Vec3::new(o[0][i], o[1][i], o[2][i]), c.forward);
@@ -458,7 +459,7 @@ unsafe fn camera_rays<S: Simd>(c: &ImagePlane, pixels: &[(u32, u32)], rays: &mut
 /// AVX2 and FMA present.
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn camera_rays_avx2(
-    c: &ImagePlane,
+    c: &Camera,
     pixels: &[(u32, u32)],
     rays: &mut [(Vec3, Vec3)],
 ) {
@@ -471,7 +472,7 @@ pub(super) unsafe fn camera_rays_avx2(
 /// AVX2, FMA and AVX-512 F present.
 #[target_feature(enable = "avx2,fma,avx512f")]
 pub(super) unsafe fn camera_rays_avx512(
-    c: &ImagePlane,
+    c: &Camera,
     pixels: &[(u32, u32)],
     rays: &mut [(Vec3, Vec3)],
 ) {
@@ -699,7 +700,6 @@ mod tests {
                     ..CameraParams::default()
                 };
                 let cam = Camera::fit(&params, lo, hi, w, h);
-                let plane = cam.plane();
                 let pixels: Vec<(u32, u32)> =
                     (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).collect();
                 for len in 1..=LANES {
@@ -712,7 +712,7 @@ mod tests {
                         for rays_of in levels {
                             let mut got = vec![(Vec3::ZERO, Vec3::ZERO); chunk.len()];
                             // SAFETY: the CPU has the instructions (checked above).
-                            unsafe { rays_of(&plane, chunk, &mut got) };
+                            unsafe { rays_of(&cam, chunk, &mut got) };
                             // Compared as printed: `-0.0` and `0.0` differ there.
                             assert_eq!(
                                 format!("{got:?}"),

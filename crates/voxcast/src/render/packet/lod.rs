@@ -13,7 +13,6 @@ use super::simd::Simd;
 use super::vwalk::{flush_lanes, run_walks, Rays, VBlocks};
 use super::walk::RunRegs;
 use super::{Packets, Runs, State};
-use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 
 /// What the lanes' `lod` walk reads.
@@ -163,12 +162,7 @@ impl<'a, S: Simd> VLod<'a, S> {
             ended = S::but(fin, d);
         }
         rr.pend_ok = S::but(rr.pend_ok, need);
-        *kv = S::blend(found, *kv, n0);
-        rr.kend = S::blend(found, rr.kend, n1);
-        rr.stv = S::blend(found, rr.stv, sk);
-        let off = S::mullo(S::to_i(c), S::splat_i((LUT_SIZE * 4) as i32));
-        rr.offv = S::blend_i(found, rr.offv, off);
-        rr.fresh = S::or(rr.fresh, found);
+        rr.take(found, kv, n0, n1, sk, c);
         (ended, dead)
     }
 }

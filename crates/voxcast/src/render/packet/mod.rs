@@ -476,17 +476,15 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     #[cfg(target_arch = "x86_64")]
     pub fn camera_rays(
         &self,
-        plane: &crate::camera::ImagePlane,
+        cam: &crate::camera::Camera,
         pixels: &[(u32, u32)],
         rays: &mut [(Vec3, Vec3)],
     ) {
         // SAFETY: `level` checked the CPU before any packet was made.
         unsafe {
             match self.level {
-                Level::Avx2 | Level::Avx2Loads => lanes::camera_rays_avx2(plane, pixels, rays),
-                Level::Avx512 | Level::Avx512Loads => {
-                    lanes::camera_rays_avx512(plane, pixels, rays)
-                }
+                Level::Avx2 | Level::Avx2Loads => lanes::camera_rays_avx2(cam, pixels, rays),
+                Level::Avx512 | Level::Avx512Loads => lanes::camera_rays_avx512(cam, pixels, rays),
             }
         }
     }

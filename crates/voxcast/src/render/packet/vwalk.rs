@@ -21,7 +21,6 @@ use super::simd::Simd;
 use super::walk::{RunRegs, SLOT_W};
 use super::{Packets, Runs, State, WalkStart, LANES};
 use crate::render::march::VRule;
-use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 
 /// What the vector walk reads of a step-per-block march.
@@ -472,14 +471,9 @@ impl<'a, S: Simd> VWalk<'a, S> {
         // Each pending sample is now composited.
         rr.pend_ok = S::but(rr.pend_ok, need);
         // The runs handed out.
-        let out = self.rdy;
-        *kv = S::blend(found, *kv, out[1]);
-        rr.kend = S::blend(found, rr.kend, out[2]);
-        rr.stv = S::blend(found, rr.stv, self.step(S::keep(found, out[0])));
-        let off = S::mullo(S::to_i(out[0]), S::splat_i((LUT_SIZE * 4) as i32));
-        rr.offv = S::blend_i(found, rr.offv, off);
-        rr.capv = S::blend(found, rr.capv, out[3]);
-        rr.fresh = S::or(rr.fresh, found);
+        let [li, n0, n1, cap] = self.rdy;
+        rr.take(found, kv, n0, n1, self.step(S::keep(found, li)), li);
+        rr.capv = S::blend(found, rr.capv, cap);
         (ended, dead)
     }
 

@@ -50,6 +50,27 @@ pub(super) const SLOT_AL: usize = 6;
 pub(super) const SLOT_W: usize = 7;
 
 impl<S: Simd> RunRegs<S> {
+    /// The lanes of `found` take their next run: samples `n0..n1` (`n0`
+    /// into `kv`) at step `step` on the tables' level `level` (a whole
+    /// number as a float); it starts its groups afresh.
+    #[inline(always)]
+    pub unsafe fn take(
+        &mut self,
+        found: S::M,
+        kv: &mut S::F,
+        n0: S::F,
+        n1: S::F,
+        step: S::F,
+        level: S::F,
+    ) {
+        *kv = S::blend(found, *kv, n0);
+        self.kend = S::blend(found, self.kend, n1);
+        self.stv = S::blend(found, self.stv, step);
+        let off = S::mullo(S::to_i(level), S::splat_i((LUT_SIZE * 4) as i32));
+        self.offv = S::blend_i(found, self.offv, off);
+        self.fresh = S::or(self.fresh, found);
+    }
+
     /// Lanes that have no run yet (each fetches its first), with the
     /// group thresholds `th1`, `th2`.
     #[inline(always)]
