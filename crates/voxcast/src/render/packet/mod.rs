@@ -75,10 +75,11 @@ mod lod;
 mod runs;
 mod shade;
 mod threshold;
+mod zpairs;
 
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
-use crate::volume::{Voxel, VoxelData, VoxelKind};
+use crate::volume::Voxel;
 pub(in crate::render) use distance::{distances_in_place, skip_distances};
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
@@ -87,6 +88,7 @@ pub(in crate::render) use lod::VLodParams;
 use runs::WalkStart;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 pub(in crate::render) use threshold::Thr;
+pub(in crate::render) use zpairs::ZPairs;
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
 /// register, AVX2 as two packets of eight.
@@ -178,134 +180,6 @@ pub(super) fn fits<T: Voxel>(g: &crate::volume::Grid<'_, T>) -> bool {
     let (data, step, _, _) = g.layout();
     let bytes = std::mem::size_of_val(data);
     step[0] == 1 && bytes >= 4 && bytes < (i32::MAX as usize) / 2
-}
-
-/// The z-paired copy of a volume the packets fetch from, by voxel type
-/// (u16 and i16 volumes are fetched from the grid itself). Twice the
-/// volume's bytes, on 2 MiB pages where Linux allows; built once per
-/// renderer, or refilled per brick out of core ([`ZPairs::refill`]).
-pub(in crate::render) enum ZPairs {
-    /// Per voxel `v(x, y, z)` and `v(x, y, z + 1)` in one `u16` (low byte
-    /// first; the last slice pairs with itself), so one 32-bit gather at
-    /// voxel `(x, y, z)` reads the four corners `(x, z)`, `(x, z + 1)`,
-    /// `(x + 1, z)`, `(x + 1, z + 1)` of a trilinear fetch — two gathers
-    /// per fetch instead of four.
-    U8(Vec<u16>),
-    /// Per voxel `v(x, y, z)` and `v(x, y, z + 1)` side by side (the last
-    /// slice pairs with itself), so a row's four corners lie in 16
-    /// contiguous bytes: a trilinear fetch reads two rows, two cache lines,
-    /// where the grid itself spreads its eight corners over four (two
-    /// slices, two rows each), and four 64-bit gathers instead of eight
-    /// 32-bit ones. [`fits`] keeps the volumes the packets march below
-    /// 1 GiB, so the copy stays below 2 GiB.
-    F32(Vec<[f32; 2]>),
-    None,
-}
-
-/// Per voxel of `v` (`dims`, x fastest), `pack` of `v(x, y, z)` and
-/// `v(x, y, z + 1)` (the last slice paired with itself), into `out`:
-/// its allocation is reused where it is large enough, else a fresh one
-/// gets the huge-page hint before any page is touched.
-fn paired_into<T: Copy, P>(out: &mut Vec<P>, v: &[T], dims: [usize; 3], pack: impl Fn(T, T) -> P) {
-    let slice = dims[0] * dims[1];
-    let last = slice * (dims[2] - 1);
-    out.clear();
-    if out.capacity() < v.len() {
-        *out = Vec::with_capacity(v.len());
-        huge_pages(out);
-    }
-    out.extend(v.iter().enumerate().map(|(i, &a)| {
-        let b = if i < last { v[i + slice] } else { a };
-        pack(a, b)
-    }));
-}
-
-impl ZPairs {
-    /// The copy for `data` of `dims`.
-    pub(in crate::render) fn of(data: &VoxelData, dims: [usize; 3]) -> ZPairs {
-        let mut z = ZPairs::None;
-        match data {
-            VoxelData::U8(v) => z.refill(v, dims),
-            VoxelData::U16(v) => z.refill(v, dims),
-            VoxelData::I16(v) => z.refill(v, dims),
-            VoxelData::F32(v) => z.refill(v, dims),
-        }
-        z
-    }
-
-    /// Makes this the copy for `data` of `dims`, reusing its allocation
-    /// where it holds the same type (out of core, one copy refilled brick
-    /// after brick). The one place that says which voxel types have a copy.
-    pub(in crate::render) fn refill<T: Voxel>(&mut self, data: &[T], dims: [usize; 3]) {
-        let old = std::mem::replace(self, ZPairs::None);
-        match T::KIND {
-            VoxelKind::U8 => {
-                let mut out = match old {
-                    ZPairs::U8(v) => v,
-                    _ => Vec::new(),
-                };
-                let v = same::<T, u8>(data);
-                paired_into(&mut out, v, dims, |a, b| a as u16 | (b as u16) << 8);
-                *self = ZPairs::U8(out);
-            }
-            VoxelKind::F32 => {
-                let mut out = match old {
-                    ZPairs::F32(v) => v,
-                    _ => Vec::new(),
-                };
-                paired_into(&mut out, same::<T, f32>(data), dims, |a, b| [a, b]);
-                *self = ZPairs::F32(out);
-            }
-            VoxelKind::U16 | VoxelKind::I16 => {}
-        }
-    }
-
-    /// The copy's first byte, for voxels of kind `kind`: null where the
-    /// packets fetch that kind from the grid.
-    ///
-    /// # Panics
-    /// Where the copy is of another kind than `kind` (a renderer's bug:
-    /// the lanes would read it as the wrong type).
-    pub(super) fn ptr(&self, kind: VoxelKind) -> *const u8 {
-        match (self, kind) {
-            (ZPairs::U8(v), VoxelKind::U8) => v.as_ptr() as *const u8,
-            (ZPairs::F32(v), VoxelKind::F32) => v.as_ptr() as *const u8,
-            (ZPairs::None, VoxelKind::U16 | VoxelKind::I16) => std::ptr::null(),
-            _ => panic!("the packets' z-paired copy is not of the grid's voxel type"),
-        }
-    }
-}
-
-/// `data` as a slice of `U`, which `T::KIND` says `T` is.
-///
-/// # Panics
-/// Where `T` is not `U` (a `Voxel` impl whose `KIND` names another type).
-fn same<T: 'static, U: 'static>(data: &[T]) -> &[U] {
-    assert_eq!(std::any::TypeId::of::<T>(), std::any::TypeId::of::<U>());
-    // SAFETY: T and U are the same type (checked above).
-    unsafe { std::slice::from_raw_parts(data.as_ptr() as *const U, data.len()) }
-}
-
-/// Asks Linux to back `v`'s (still untouched) capacity with 2 MiB pages:
-/// the lanes' fetches land on scattered slices, and with 4 KiB pages a
-/// volume of tens of MiB misses the TLB on most of them. A hint only (it
-/// does nothing where transparent huge pages are off).
-fn huge_pages<T>(v: &mut Vec<T>) {
-    #[cfg(target_os = "linux")]
-    {
-        const HUGE: usize = 2 << 20;
-        let start = v.as_mut_ptr() as usize;
-        let end = start + v.capacity() * std::mem::size_of::<T>();
-        let lo = start.next_multiple_of(HUGE);
-        let hi = end / HUGE * HUGE;
-        if hi > lo {
-            // SAFETY: [lo, hi) lies inside `v`'s allocation; MADV_HUGEPAGE
-            // changes how pages are backed, never their contents.
-            unsafe { libc::madvise(lo as *mut libc::c_void, hi - lo, libc::MADV_HUGEPAGE) };
-        }
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = v;
 }
 
 /// What every packet of a render shares; `R`: where the lanes' runs come
