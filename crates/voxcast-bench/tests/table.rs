@@ -14,7 +14,7 @@ fn table(simd: Simd) -> String {
     scene.render.simd = simd;
     let prepared = scene.prepare().unwrap();
     let config = BenchConfig {
-        methods: parse_methods("uniform,threshold+grouped").unwrap(),
+        methods: parse_methods("uniform,stratified").unwrap(),
         repeat: 1,
         warmup: 0,
         cache_dir: None,
@@ -35,7 +35,7 @@ fn the_table_says_which_loop_ran() {
         assert!(!forced.contains("yet"), "{forced}");
         assert!(
             auto.contains(
-                "Scalar loop (these methods do not run in the SIMD packets yet): threshold+grouped."
+                "Scalar loop (these methods do not run in the SIMD packets yet): stratified."
             ),
             "{auto}"
         );

@@ -171,9 +171,10 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
 }
 
 /// The SIMD packets, at every level this CPU has, against the scalar loop:
-/// every stored type, both fixed-step methods, `importance` and `threshold`, skipping on and off, early
-/// termination on and off, flat and Phong, every optical model, several
-/// passes of jitter.
+/// every stored type, both fixed-step methods, `importance`, `threshold`
+/// and `threshold+grouped` (the same interpolations, and some reused),
+/// skipping on and off, early termination on and off, flat and Phong,
+/// every optical model, several passes of jitter.
 /// On a CPU without AVX2 there is no level and the test checks nothing (the
 /// packets' own dispatch, which must then pick the scalar loop, is what the
 /// other tests see).
@@ -187,12 +188,13 @@ fn packets_give_the_scalar_pixels() {
     for vol in typed_volumes() {
         let s = vol.stats();
         let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
-        let mut terminated = 0;
-        for method in [
-            Method::Uniform,
-            Method::Jitter,
-            Method::Importance,
-            Method::Threshold,
+        let (mut terminated, mut reused) = (0, 0);
+        for (method, grouped) in [
+            (Method::Uniform, false),
+            (Method::Jitter, false),
+            (Method::Importance, false),
+            (Method::Threshold, false),
+            (Method::Threshold, true),
         ] {
             for skip_empty in [true, false] {
                 for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
@@ -205,6 +207,7 @@ fn packets_give_the_scalar_pixels() {
                             width: 45,
                             height: 21,
                             method,
+                            grouped,
                             shading,
                             skip_empty,
                             ert,
@@ -222,8 +225,9 @@ fn packets_give_the_scalar_pixels() {
                             let (simd, ss) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
                             let d = max_diff(&simd, &scalar);
                             let what = format!(
-                            "{name}: {} {:?} skip {skip_empty} ert {ert} shading {shading} {optical:?}",
+                            "{name}: {}{} {:?} skip {skip_empty} ert {ert} shading {shading} {optical:?}",
                             method.name(),
+                            if grouped { "+grouped" } else { "" },
                             vol.scalar_type()
                         );
                             assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
@@ -243,10 +247,18 @@ fn packets_give_the_scalar_pixels() {
                             // faces; a rounding at a face may differ).
                             let (a, b) = (ss.samples as f64, sc.samples as f64);
                             assert!((a - b).abs() <= 1e-3 * b, "{what}: samples {a} vs {b}");
+                            let (a, b) = (ss.interpolations as f64, sc.interpolations as f64);
+                            assert!(
+                                (a - b).abs() <= 1e-3 * b,
+                                "{what}: interpolations {a} vs {b}"
+                            );
                             assert_eq!(ss.simd.map(|l| l.name()), Some(name), "{what}");
                             assert_eq!(sc.simd, None, "{what}");
                         }
                         terminated += sc.early_terminated;
+                        if grouped && sc.interpolations < sc.samples {
+                            reused += 1;
+                        }
                     }
                 }
             }
@@ -254,6 +266,10 @@ fn packets_give_the_scalar_pixels() {
         assert!(
             terminated > 0,
             "no ray terminated early: the test lost its teeth"
+        );
+        assert!(
+            reused > 0,
+            "no grouped sample was reused: the test lost its teeth"
         );
     }
 }
@@ -320,6 +336,9 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             (Method::Lod, true, false),
             (Method::Threshold, false, false),
             (Method::Threshold, true, false),
+            // Grouped `threshold` starts a group past each jump.
+            (Method::Threshold, false, true),
+            (Method::Threshold, true, true),
             // The step-per-block walks jump the empty cubes too.
             (Method::Adaptive, false, false),
             (Method::Adaptive, true, true),
@@ -349,6 +368,7 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
                 let d = max_diff(&simd, &scalar);
                 assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
                 assert_eq!(ss.samples, sc.samples, "{what}");
+                assert_eq!(ss.interpolations, sc.interpolations, "{what}");
                 assert_eq!(ss.early_terminated, sc.early_terminated, "{what}");
                 assert_eq!(ss.simd.map(|l| l.name()), Some(name), "{what}");
             }

@@ -494,6 +494,7 @@ impl Job<'_> {
                     steps: p.threshold.steps.map(|s| s * self.unit),
                     tables: &tables,
                     sigma: self.lut.sigmas(),
+                    grouped: p.grouped,
                 };
                 if let Some(out) = self.packets::<T, ()>(f, &t, None, None, Some(thr)) {
                     return out;
@@ -712,7 +713,7 @@ impl Job<'_> {
         // The shading `shaded` picks.
         let shading = p.shading.then(BlinnPhong::default);
         let level = packet::level(p.simd)?;
-        if (p.grouped && runs.is_none())
+        if (p.grouped && runs.is_none() && thr.is_none())
             || shading.is_some_and(|bp| !packet::shades(&bp))
             || p.order != Order::FrontToBack
             || !packet::fits(f.grid)

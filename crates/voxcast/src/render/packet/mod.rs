@@ -692,14 +692,36 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             };
         }
         if !R::ON && self.thr.is_some() {
-            // `threshold`: skipping and shading (its own loop).
+            // `threshold`: skipping, shading and grouped reuse (its own
+            // loop).
+            let grouped = self.thr.as_ref().is_some_and(|t| t.grouped);
             macro_rules! thr {
                 ($f:ident) => {
-                    match (choice.0, choice.1) {
-                        (false, false) => threshold::$f::<T, R, false, false>(self, lanes, st),
-                        (true, false) => threshold::$f::<T, R, true, false>(self, lanes, st),
-                        (false, true) => threshold::$f::<T, R, false, true>(self, lanes, st),
-                        (true, true) => threshold::$f::<T, R, true, true>(self, lanes, st),
+                    match (choice.0, choice.1, grouped) {
+                        (false, false, false) => {
+                            threshold::$f::<T, R, false, false, false>(self, lanes, st)
+                        }
+                        (true, false, false) => {
+                            threshold::$f::<T, R, true, false, false>(self, lanes, st)
+                        }
+                        (false, true, false) => {
+                            threshold::$f::<T, R, false, true, false>(self, lanes, st)
+                        }
+                        (true, true, false) => {
+                            threshold::$f::<T, R, true, true, false>(self, lanes, st)
+                        }
+                        (false, false, true) => {
+                            threshold::$f::<T, R, false, false, true>(self, lanes, st)
+                        }
+                        (true, false, true) => {
+                            threshold::$f::<T, R, true, false, true>(self, lanes, st)
+                        }
+                        (false, true, true) => {
+                            threshold::$f::<T, R, false, true, true>(self, lanes, st)
+                        }
+                        (true, true, true) => {
+                            threshold::$f::<T, R, true, true, true>(self, lanes, st)
+                        }
                     }
                 };
             }

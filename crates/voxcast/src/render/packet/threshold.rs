@@ -3,7 +3,11 @@
 //! lanes' positions drift apart and each keeps its own `t`. Empty blocks
 //! are skipped by the fixed-step loop's skip distances, and the lane then
 //! starts again on the base grid `t₀ + n·step` past them, where the
-//! scalar march restarts at the next block that is not empty.
+//! scalar march restarts at the next block that is not empty. With S0's
+//! grouped reuse (`threshold+grouped`) a lane evaluates only its groups'
+//! heads (a restart starts a group) and, shaded, keeps each head in a
+//! slot that gathers the weights of the samples reusing it, so a group is
+//! shaded once.
 
 #[cfg(target_arch = "x86_64")]
 pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512, thr_avx512_loads};
@@ -27,6 +31,11 @@ pub(in crate::render) struct Thr<'a> {
     /// Extinction per unit length of every entry, for the last sample's
     /// stretch.
     pub sigma: &'a [f32; LUT_SIZE],
+    /// S0's grouped reuse (`threshold+grouped`): the `k`-th sample since
+    /// the ray's start or its last skip is evaluated where `k` is a
+    /// multiple of its group's size (`march::group_size`), the others
+    /// reuse the group head's value and colour (`sample::Grouped`).
+    pub grouped: bool,
 }
 
 impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
@@ -86,7 +95,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx2,
         "avx2,fma",
         W8<false>,
-        march<SKIP, SHADE>
+        march<SKIP, SHADE, GROUPED>
     );
     entry!(
         /// [`thr_avx2`] fetching by scalar loads.
@@ -96,7 +105,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx2_loads,
         "avx2,fma",
         W8<true>,
-        march<SKIP, SHADE>
+        march<SKIP, SHADE, GROUPED>
     );
     entry!(
         /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
@@ -106,7 +115,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx512,
         "avx2,fma,avx512f",
         W16<false>,
-        march<SKIP, SHADE>
+        march<SKIP, SHADE, GROUPED>
     );
     entry!(
         /// [`thr_avx512`] fetching by scalar loads.
@@ -116,7 +125,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx512_loads,
         "avx2,fma,avx512f",
         W16<true>,
-        march<SKIP, SHADE>
+        march<SKIP, SHADE, GROUPED>
     );
 
     /// The loop of both widths: lane by lane `march::Threshold::march` with
@@ -125,7 +134,14 @@ mod vector {
     /// # Safety
     /// As [`thr_avx2`], with the width's instructions.
     #[inline(always)]
-    unsafe fn march<S: Simd, T: Voxel, R: Runs<T>, const SKIP: bool, const SHADE: bool>(
+    unsafe fn march<
+        S: Simd,
+        T: Voxel,
+        R: Runs<T>,
+        const SKIP: bool,
+        const SHADE: bool,
+        const GROUPED: bool,
+    >(
         pk: &Packets<'_, T, R>,
         lanes: &[Option<Lane>],
         st: &mut State<'_>,
@@ -136,7 +152,7 @@ mod vector {
         let vol = Vol::<S>::of(pk);
         // Per lane: origin, direction, grid start, view, first sample, end of
         // the walk, exit, the last stretch's end, colour and opacity.
-        let mut a = [S::Af::default(); 18];
+        let mut a = [S::Af::default(); 20];
         let mut live_bits = 0u32;
         for (i, l) in lanes.iter().enumerate() {
             let Some(l) = l else { continue };
@@ -161,6 +177,9 @@ mod vector {
                 c.y,
                 c.z,
                 c.w,
+                // `group_size`'s thirds of the exit.
+                out / 3.0,
+                out * (2.0 / 3.0),
             ];
             for (k, x) in v.into_iter().enumerate() {
                 a[k][i] = x;
@@ -208,6 +227,17 @@ mod vector {
         let rays = Rays { o, d, inv_d, t0 };
         let mut live = S::from_bits(live_bits);
         let (mut cnt, mut cnt_shaded) = (S::splat_i(0), S::splat_i(0));
+        // Grouped reuse: each lane's sample count since its start or its
+        // last skip, whether its next sample must be evaluated, and its
+        // group head's value; with shading its head waits in a slot
+        // (position, colour, opacity) gathering the weights of the
+        // samples that reuse it, and goes to the queue once.
+        let (th1, th2) = (S::load(a[18]), S::load(a[19]));
+        let mut kc = zero;
+        let mut fresh = S::from_bits(live_bits);
+        let mut head_v = zero;
+        let mut cnt_interp = S::splat_i(0);
+        let mut slot = Slot::<S>::new();
         loop {
             let act = S::and(live, S::lt(t, t_stop));
             if S::bits(act) == 0 {
@@ -228,13 +258,40 @@ mod vector {
                     let k1 = S::floor((t - t0) * inv_st + S::splat(1e-3)) + one;
                     t = S::blend(skip, t, t0 + S::max(kn, k1) * stv);
                     samp = S::but(act, skip);
+                    if GROUPED {
+                        // The march restarts past the skip: a new group.
+                        kc = S::blend(skip, kc, zero);
+                        fresh = S::or(fresh, skip);
+                    }
                     if S::bits(samp) == 0 {
                         continue;
                     }
                 }
             }
             cnt = S::count(cnt, samp);
-            let v = vol.sample::<T>(p);
+            let v = if GROUPED {
+                // `group_size(t, t_out)` divides the count: a head.
+                let g = one + S::keep(S::gt(t, th1), one) + S::keep(S::gt(t, th2), one);
+                let div = S::eq(S::floor(kc / g) * g, kc);
+                let head = S::and(samp, S::or(fresh, div));
+                fresh = S::but(fresh, samp);
+                kc = S::blend(samp, kc, kc + one);
+                if S::bits(head) != 0 {
+                    cnt_interp = S::count(cnt_interp, head);
+                    head_v = S::blend(head, head_v, vol.sample::<T>(p));
+                    if SHADE {
+                        // The old heads' colours go to the queue.
+                        let out = S::and(head, slot.held);
+                        if S::bits(out) != 0 {
+                            slot.queue::<T>(&mut dq, out, &vol, &light, view);
+                        }
+                        slot.replace(head, p);
+                    }
+                }
+                head_v
+            } else {
+                vol.sample::<T>(p)
+            };
             // `ThresholdParams::range`: 0 below the first bound, 1 below the
             // second, else 2 (NaN too).
             let (lt0, lt1) = (S::lt(v, b0), S::lt(v, b1));
@@ -261,7 +318,23 @@ mod vector {
             }
             let mut e = [zero; 3];
             valid = S::and(valid, S::gt(al, zero));
-            if SHADE {
+            if SHADE && GROUPED {
+                // Heads are shaded once, from their slot: a sample that is
+                // not its ray's last adds its weight to its head's slot
+                // (the same colour); a last one goes to the queue itself.
+                let heads = slot.heads;
+                slot.take(heads, valid, al, [qr, qg, qb]);
+                cnt_shaded = S::count(cnt_shaded, S::and(heads, valid));
+                let w = we * (one - col[3]);
+                let alone = S::and(valid, last);
+                slot.w = S::blend(S::but(valid, last), slot.w, slot.w + w);
+                if S::bits(alone) != 0 {
+                    let ph = slot.p;
+                    if dq.push::<S>(alone, ph, w, al, [qr, qg, qb]) {
+                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                    }
+                }
+            } else if SHADE {
                 if S::bits(valid) != 0 {
                     let w = we * (one - col[3]);
                     if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
@@ -281,9 +354,85 @@ mod vector {
             live = S::but(live, S::and(valid, S::ge(col[3], stop)));
             t = S::blend(samp, t, t + step);
         }
+        if SHADE && GROUPED {
+            let out = slot.held;
+            if S::bits(out) != 0 {
+                slot.queue::<T>(&mut dq, out, &vol, &light, view);
+            }
+        }
         if SHADE {
             drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);
         }
-        store_lanes::<S>(st, lanes, col, [cnt, cnt_shaded, cnt], live);
+        let interp = if GROUPED { cnt_interp } else { cnt };
+        store_lanes::<S>(st, lanes, col, [cnt, cnt_shaded, interp], live);
+    }
+
+    /// Grouped reuse with shading: per lane, the group head whose colour
+    /// waits — its position, premultiplied colour and opacity, and the
+    /// weight the samples that composite it have gathered.
+    struct Slot<S: Simd> {
+        p: [S::F; 3],
+        q: [S::F; 3],
+        al: S::F,
+        w: S::F,
+        /// Lanes whose slot holds a visible head.
+        held: S::M,
+        /// Lanes whose head was evaluated at this step (its colour not
+        /// yet known).
+        heads: S::M,
+    }
+
+    impl<S: Simd> Slot<S> {
+        #[inline(always)]
+        unsafe fn new() -> Self {
+            let z = S::splat(0.0);
+            Slot {
+                p: [z; 3],
+                q: [z; 3],
+                al: z,
+                w: z,
+                held: S::from_bits(0),
+                heads: S::from_bits(0),
+            }
+        }
+
+        /// Lanes `m` evaluate a new head at `p`.
+        #[inline(always)]
+        unsafe fn replace(&mut self, m: S::M, p: [S::F; 3]) {
+            self.heads = m;
+            for (a, b) in self.p.iter_mut().zip(p) {
+                *a = S::blend(m, *a, b);
+            }
+        }
+
+        /// The new heads of lanes `m` take their colour and opacity
+        /// (`valid`: visible), with no weight yet.
+        #[inline(always)]
+        unsafe fn take(&mut self, m: S::M, valid: S::M, al: S::F, q: [S::F; 3]) {
+            for (a, b) in self.q.iter_mut().zip(q) {
+                *a = S::blend(m, *a, b);
+            }
+            self.al = S::blend(m, self.al, al);
+            self.w = S::blend(m, self.w, S::splat(0.0));
+            self.held = S::or(S::but(self.held, m), S::and(m, valid));
+            self.heads = S::from_bits(0);
+        }
+
+        /// Queues the slots of lanes `m`, shading a vector when one is full.
+        #[inline(always)]
+        unsafe fn queue<T: Voxel>(
+            &mut self,
+            dq: &mut Deferred,
+            m: S::M,
+            vol: &Vol<S>,
+            light: &Light<S>,
+            view: [S::F; 3],
+        ) {
+            let go = S::and(m, S::gt(self.w, S::splat(0.0)));
+            if S::bits(go) != 0 && dq.push::<S>(go, self.p, self.w, self.al, self.q) {
+                shade_deferred::<S, T>(dq, vol, light, view);
+            }
+            self.held = S::but(self.held, m);
+        }
     }
 }
