@@ -12,15 +12,68 @@
 //! of them (54 % on the teapot CT); the queue makes every shading lane
 //! count. The step-per-block marches composite a sample's colour at more
 //! than one step (S0's grouped reuse; a run's last sample, scaled once its
-//! stretch is known): there each lane's last evaluated sample waits in a
-//! slot (`walk::RunRegs::slot`) that sums its weights, and goes to the
-//! queue when the lane evaluates its next one. Their scalar walk
-//! (`adaptive-s0`) composites a run's end itself and shades at once.
+//! stretch is known), and so does grouped `threshold`: there each lane's
+//! last evaluated sample waits in a slot ([`Slots`]) that sums its
+//! weights, and goes to the queue when the lane evaluates its next one.
+//! Their scalar walk (`adaptive-s0`) composites a run's end itself and
+//! shades at once.
 
 use super::simd::Simd;
 use super::LANES;
 use crate::render::shading::BlinnPhong;
 use glam::Vec3;
+
+/// Per lane, the last evaluated sample whose colour waits unshaded —
+/// position, premultiplied colour, opacity — with the weight its colour
+/// has gathered so far (the transmittance × emission weight of every step
+/// it was composited at); it goes to the queue when the lane evaluates
+/// its next sample, or at the end.
+pub(super) struct Slots<S: Simd> {
+    pub p: [S::F; 3],
+    pub q: [S::F; 3],
+    pub al: S::F,
+    pub w: S::F,
+    /// Lanes whose slot holds a visible sample.
+    pub ok: S::M,
+}
+
+impl<S: Simd> Slots<S> {
+    /// Empty slots.
+    #[inline(always)]
+    pub unsafe fn new() -> Self {
+        let zero = S::splat(0.0);
+        Slots {
+            p: [zero; 3],
+            q: [zero; 3],
+            al: zero,
+            w: zero,
+            ok: S::from_bits(0),
+        }
+    }
+
+    /// The lanes of `m` evaluated a sample (position `p`, premultiplied
+    /// colour `q`, opacity `al`, visible where `ok`): it replaces their
+    /// slot, with no weight yet (queue the old ones, [`Slots::weighty`],
+    /// first).
+    #[inline(always)]
+    pub unsafe fn replace(&mut self, m: S::M, p: [S::F; 3], q: [S::F; 3], al: S::F, ok: S::M) {
+        for (s, v) in self.p.iter_mut().zip(p) {
+            *s = S::blend(m, *s, v);
+        }
+        for (s, v) in self.q.iter_mut().zip(q) {
+            *s = S::blend(m, *s, v);
+        }
+        self.al = S::blend(m, self.al, al);
+        self.w = S::blend(m, self.w, S::splat(0.0));
+        self.ok = S::or(S::and(m, ok), S::but(self.ok, m));
+    }
+
+    /// The lanes of `m` whose slot holds a visible sample with weight.
+    #[inline(always)]
+    pub unsafe fn weighty(&self, m: S::M) -> S::M {
+        S::and(S::and(m, self.ok), S::gt(self.w, S::splat(0.0)))
+    }
+}
 
 /// `x^n` by repeated squaring (`n` ≤ 64).
 #[inline(always)]

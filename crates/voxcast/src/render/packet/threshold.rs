@@ -75,10 +75,10 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 /// The vector loop (x86-64 only, as the packets).
 #[cfg(target_arch = "x86_64")]
 mod vector {
-    use super::super::shade::{Deferred, Light};
+    use super::super::shade::{Deferred, Light, Slots};
     use super::super::simd::{Simd, W16, W8};
     use super::super::tail::{drain_deferred, store_lanes};
-    use super::super::vector::{shade_deferred, Skips, Vol};
+    use super::super::vector::{queue_slots, shade_deferred, Skips, Vol};
     use super::super::vwalk::exp;
     use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
@@ -237,7 +237,7 @@ mod vector {
         let mut fresh = S::from_bits(live_bits);
         let mut head_v = zero;
         let mut cnt_interp = S::splat_i(0);
-        let mut slot = Slot::<S>::new();
+        let mut slot = Slots::<S>::new();
         loop {
             let act = S::and(live, S::lt(t, t_stop));
             if S::bits(act) == 0 {
@@ -269,7 +269,7 @@ mod vector {
                 }
             }
             cnt = S::count(cnt, samp);
-            let v = if GROUPED {
+            let (v, head) = if GROUPED {
                 // `group_size(t, t_out)` divides the count: a head.
                 let g = one + S::keep(S::gt(t, th1), one) + S::keep(S::gt(t, th2), one);
                 let div = S::eq(S::floor(kc / g) * g, kc);
@@ -279,18 +279,10 @@ mod vector {
                 if S::bits(head) != 0 {
                     cnt_interp = S::count(cnt_interp, head);
                     head_v = S::blend(head, head_v, vol.sample::<T>(p));
-                    if SHADE {
-                        // The old heads' colours go to the queue.
-                        let out = S::and(head, slot.held);
-                        if S::bits(out) != 0 {
-                            slot.queue::<T>(&mut dq, out, &vol, &light, view);
-                        }
-                        slot.replace(head, p);
-                    }
                 }
-                head_v
+                (head_v, head)
             } else {
-                vol.sample::<T>(p)
+                (vol.sample::<T>(p), samp)
             };
             // `ThresholdParams::range`: 0 below the first bound, 1 below the
             // second, else 2 (NaN too).
@@ -319,20 +311,24 @@ mod vector {
             let mut e = [zero; 3];
             valid = S::and(valid, S::gt(al, zero));
             if SHADE && GROUPED {
-                // Heads are shaded once, from their slot: a sample that is
-                // not its ray's last adds its weight to its head's slot
-                // (the same colour); a last one goes to the queue itself.
-                let heads = slot.heads;
-                slot.take(heads, valid, al, [qr, qg, qb]);
-                cnt_shaded = S::count(cnt_shaded, S::and(heads, valid));
+                // Heads are shaded once, from their slot ([`Slots`]): the
+                // old heads go to the queue, the new ones take their
+                // place; a sample that is not its ray's last adds its
+                // weight to its head's slot (the same colour), a last one
+                // goes to the queue itself, at its head's position.
+                if S::bits(head) != 0 {
+                    let out = slot.weighty(head);
+                    if S::bits(out) != 0 {
+                        queue_slots::<S, T>(&mut dq, &slot, out, &vol, &light, view);
+                    }
+                    slot.replace(head, p, [qr, qg, qb], al, valid);
+                    cnt_shaded = S::count(cnt_shaded, S::and(head, valid));
+                }
                 let w = we * (one - col[3]);
                 let alone = S::and(valid, last);
                 slot.w = S::blend(S::but(valid, last), slot.w, slot.w + w);
-                if S::bits(alone) != 0 {
-                    let ph = slot.p;
-                    if dq.push::<S>(alone, ph, w, al, [qr, qg, qb]) {
-                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
-                    }
+                if S::bits(alone) != 0 && dq.push::<S>(alone, slot.p, w, al, [qr, qg, qb]) {
+                    shade_deferred::<S, T>(&mut dq, &vol, &light, view);
                 }
             } else if SHADE {
                 if S::bits(valid) != 0 {
@@ -355,84 +351,14 @@ mod vector {
             t = S::blend(samp, t, t + step);
         }
         if SHADE && GROUPED {
-            let out = slot.held;
-            if S::bits(out) != 0 {
-                slot.queue::<T>(&mut dq, out, &vol, &light, view);
-            }
+            // The heads still in their slots.
+            let out = slot.weighty(S::from_bits(u32::MAX >> (32 - S::N)));
+            queue_slots::<S, T>(&mut dq, &slot, out, &vol, &light, view);
         }
         if SHADE {
             drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);
         }
         let interp = if GROUPED { cnt_interp } else { cnt };
         store_lanes::<S>(st, lanes, col, [cnt, cnt_shaded, interp], live);
-    }
-
-    /// Grouped reuse with shading: per lane, the group head whose colour
-    /// waits — its position, premultiplied colour and opacity, and the
-    /// weight the samples that composite it have gathered.
-    struct Slot<S: Simd> {
-        p: [S::F; 3],
-        q: [S::F; 3],
-        al: S::F,
-        w: S::F,
-        /// Lanes whose slot holds a visible head.
-        held: S::M,
-        /// Lanes whose head was evaluated at this step (its colour not
-        /// yet known).
-        heads: S::M,
-    }
-
-    impl<S: Simd> Slot<S> {
-        #[inline(always)]
-        unsafe fn new() -> Self {
-            let z = S::splat(0.0);
-            Slot {
-                p: [z; 3],
-                q: [z; 3],
-                al: z,
-                w: z,
-                held: S::from_bits(0),
-                heads: S::from_bits(0),
-            }
-        }
-
-        /// Lanes `m` evaluate a new head at `p`.
-        #[inline(always)]
-        unsafe fn replace(&mut self, m: S::M, p: [S::F; 3]) {
-            self.heads = m;
-            for (a, b) in self.p.iter_mut().zip(p) {
-                *a = S::blend(m, *a, b);
-            }
-        }
-
-        /// The new heads of lanes `m` take their colour and opacity
-        /// (`valid`: visible), with no weight yet.
-        #[inline(always)]
-        unsafe fn take(&mut self, m: S::M, valid: S::M, al: S::F, q: [S::F; 3]) {
-            for (a, b) in self.q.iter_mut().zip(q) {
-                *a = S::blend(m, *a, b);
-            }
-            self.al = S::blend(m, self.al, al);
-            self.w = S::blend(m, self.w, S::splat(0.0));
-            self.held = S::or(S::but(self.held, m), S::and(m, valid));
-            self.heads = S::from_bits(0);
-        }
-
-        /// Queues the slots of lanes `m`, shading a vector when one is full.
-        #[inline(always)]
-        unsafe fn queue<T: Voxel>(
-            &mut self,
-            dq: &mut Deferred,
-            m: S::M,
-            vol: &Vol<S>,
-            light: &Light<S>,
-            view: [S::F; 3],
-        ) {
-            let go = S::and(m, S::gt(self.w, S::splat(0.0)));
-            if S::bits(go) != 0 && dq.push::<S>(go, self.p, self.w, self.al, self.q) {
-                shade_deferred::<S, T>(dq, vol, light, view);
-            }
-            self.held = S::but(self.held, m);
-        }
     }
 }

@@ -4,11 +4,11 @@
 
 use super::importance::{ImpState, VImp};
 use super::lod::VLod;
-use super::shade::{Deferred, Light};
+use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{drain_deferred, store_lanes};
 use super::vwalk::{Rays, VWalk};
-use super::walk::{walk_runs, RunRegs, SLOT_AL, SLOT_P, SLOT_Q, SLOT_W};
+use super::walk::{walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::{Voxel, VoxelKind};
 
@@ -454,24 +454,21 @@ pub(super) unsafe fn shade_deferred<S: Simd, T: Voxel>(
     dq.add::<S>(&b, e);
 }
 
-/// Queues the slots of lanes `m` (see `RunRegs::defer`), shading a
-/// vector when one is full.
+/// Queues the slots of lanes `m` ([`Slots`]), shading a vector when one
+/// is full.
 ///
 /// # Safety
 /// The width's instructions; fewer than `S::N` samples waiting.
 #[inline(always)]
-unsafe fn queue_slots<S: Simd, T: Voxel>(
+pub(super) unsafe fn queue_slots<S: Simd, T: Voxel>(
     dq: &mut Deferred,
-    rr: &RunRegs<S>,
+    sl: &Slots<S>,
     m: S::M,
     vol: &Vol<S>,
     light: &Light<S>,
     view: [S::F; 3],
 ) {
-    let sl = &rr.slot;
-    let p = [sl[SLOT_P], sl[SLOT_P + 1], sl[SLOT_P + 2]];
-    let q = [sl[SLOT_Q], sl[SLOT_Q + 1], sl[SLOT_Q + 2]];
-    if dq.push::<S>(m, p, sl[SLOT_W], sl[SLOT_AL], q) {
+    if dq.push::<S>(m, sl.p, sl.w, sl.al, sl.q) {
         shade_deferred::<S, T>(dq, vol, light, view);
     }
 }
@@ -804,11 +801,11 @@ unsafe fn march<
             if defer_runs {
                 // The evaluating lanes' old slots go to the queue, the
                 // new samples take their place.
-                let out = rr.weighty(eval);
+                let out = rr.slot.weighty(eval);
                 if S::bits(out) != 0 {
-                    queue_slots::<S, T>(&mut dq, &rr, out, &vol, &light, view);
+                    queue_slots::<S, T>(&mut dq, &rr.slot, out, &vol, &light, view);
                 }
-                rr.replace(eval, p, [qr, qg, qb], al, valid);
+                rr.slot.replace(eval, p, [qr, qg, qb], al, valid);
             }
             if GROUPED {
                 // The lanes that evaluated keep their sample for reuse.
@@ -840,7 +837,7 @@ unsafe fn march<
         let tr = one - col[3];
         if defer_runs {
             // The slot's colour is composited here: it gains the weight.
-            let w = &mut rr.slot[SLOT_W];
+            let w = &mut rr.slot.w;
             *w = *w + S::keep(valid, we * tr);
         }
         col[0] = col[0] + e[0] * we * tr;
@@ -855,8 +852,8 @@ unsafe fn march<
     }
     if defer_runs {
         // The samples still in their slots.
-        let out = rr.weighty(S::from_bits(u32::MAX >> (32 - S::N)));
-        queue_slots::<S, T>(&mut dq, &rr, out, &vol, &light, view);
+        let out = rr.slot.weighty(S::from_bits(u32::MAX >> (32 - S::N)));
+        queue_slots::<S, T>(&mut dq, &rr.slot, out, &vol, &light, view);
     }
     if defer || defer_runs {
         drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);

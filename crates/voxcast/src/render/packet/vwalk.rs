@@ -18,7 +18,7 @@
 //! [`RunWalk::next`]: crate::render::march::RunWalk::next
 
 use super::simd::Simd;
-use super::walk::{RunRegs, SLOT_W};
+use super::walk::RunRegs;
 use super::{Packets, Runs, State, WalkStart, LANES};
 use crate::render::march::VRule;
 use crate::volume::Voxel;
@@ -632,7 +632,7 @@ pub(super) unsafe fn flush_lanes<S: Simd, T: Voxel, R: Runs<T>>(
     let tr = one - col[3];
     let r = alpha / a;
     if rr.defer {
-        let w = &mut rr.slot[SLOT_W];
+        let w = &mut rr.slot.w;
         *w = S::blend(show, *w, *w + we * tr * r);
     } else {
         for (c, p) in col.iter_mut().zip(&rr.pend[..3]) {

@@ -3,6 +3,7 @@
 //! keeps in registers (`adaptive-s0`'s; the other rules walk in vector
 //! registers, `super::vwalk`).
 
+use super::shade::Slots;
 use super::simd::Simd;
 use super::{Packets, Runs, State};
 use crate::render::composite::Front;
@@ -33,21 +34,11 @@ pub(super) struct RunRegs<S: Simd> {
     pub pend_idx: S::I,
     pub pend_ok: S::M,
     /// Shading deferred ([`super::shade`]): each lane's last evaluated
-    /// sample waits here unshaded — position, premultiplied colour,
-    /// opacity — with the weight its colour has gathered so far (the
-    /// transmittance × emission weight of every step it was composited
-    /// at, reuses and the run's end included); it goes to the queue
-    /// when the lane evaluates its next sample, or at the end.
+    /// sample waits in its slot, its weight gathered at every step it is
+    /// composited at, reuses and the run's end included.
     pub defer: bool,
-    pub slot: [S::F; 8],
-    pub slot_ok: S::M,
+    pub slot: Slots<S>,
 }
-
-/// The fields of [`RunRegs::slot`].
-pub(super) const SLOT_P: usize = 0;
-pub(super) const SLOT_Q: usize = 3;
-pub(super) const SLOT_AL: usize = 6;
-pub(super) const SLOT_W: usize = 7;
 
 impl<S: Simd> RunRegs<S> {
     /// The lanes of `found` take their next run: samples `n0..n1` (`n0`
@@ -91,31 +82,8 @@ impl<S: Simd> RunRegs<S> {
             pend_idx: S::splat_i(0),
             pend_ok: S::from_bits(0),
             defer,
-            slot: [zero; 8],
-            slot_ok: S::from_bits(0),
+            slot: Slots::new(),
         }
-    }
-
-    /// The lanes of `m` evaluated a sample (position `p`, premultiplied
-    /// colour `q`, opacity `al`, visible where `ok`): it replaces their
-    /// slot, with no weight yet (queue the old ones, [`RunRegs::weighty`],
-    /// first) — see [`RunRegs::defer`].
-    #[inline(always)]
-    pub unsafe fn replace(&mut self, m: S::M, p: [S::F; 3], q: [S::F; 3], al: S::F, ok: S::M) {
-        let v = [p[0], p[1], p[2], q[0], q[1], q[2], al, S::splat(0.0)];
-        for (s, v) in self.slot.iter_mut().zip(v) {
-            *s = S::blend(m, *s, v);
-        }
-        self.slot_ok = S::or(S::and(m, ok), S::but(self.slot_ok, m));
-    }
-
-    /// The lanes of `m` whose slot holds a visible sample with weight.
-    #[inline(always)]
-    pub unsafe fn weighty(&self, m: S::M) -> S::M {
-        S::and(
-            S::and(m, self.slot_ok),
-            S::gt(self.slot[SLOT_W], S::splat(0.0)),
-        )
     }
 
     /// The lanes of `m` keep their evaluated sample `e` (colour,
