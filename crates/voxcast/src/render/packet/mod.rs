@@ -634,7 +634,10 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     /// shading [`shades`]; `empty`, when given, a flag per block.
     #[cfg(target_arch = "x86_64")]
     unsafe fn dispatch(&self, lanes: &[Option<Lane>; LANES], st: &mut State<'_>) {
-        let grouped = self.runs.is_some_and(|r| r.grouped());
+        // Grouped reuse: in the step-per-block runs, or in `threshold`'s
+        // own loop.
+        let grouped =
+            self.runs.is_some_and(|r| r.grouped()) || self.thr.as_ref().is_some_and(|t| t.grouped);
         let choice = (
             self.empty.is_some(),
             self.shading.is_some(),
@@ -643,9 +646,9 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         );
         // Only the combinations a render can ask for are instantiated:
         // `Job::packets` skips empty blocks only on the fixed step (no
-        // runs) and groups only in runs; `importance` has no runs. `R::ON`
-        // is known at compile time, so the other branch is not built:
-        // 176 copies of the march where all combinations made 320
+        // runs) and groups only in runs (or in `threshold`'s loop, below);
+        // `importance` has no runs. `R::ON` is known at compile time, so
+        // the other branch is not built: 176 copies of the march where all combinations made 320
         // (`cargo llvm-lines`), and the march was most of the crate's
         // build time.
         macro_rules! go {
@@ -694,10 +697,9 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         if !R::ON && self.thr.is_some() {
             // `threshold`: skipping, shading and grouped reuse (its own
             // loop).
-            let grouped = self.thr.as_ref().is_some_and(|t| t.grouped);
             macro_rules! thr {
                 ($f:ident) => {
-                    match (choice.0, choice.1, grouped) {
+                    match (choice.0, choice.1, choice.3) {
                         (false, false, false) => {
                             threshold::$f::<T, R, false, false, false>(self, lanes, st)
                         }

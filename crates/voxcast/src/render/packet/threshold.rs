@@ -81,6 +81,7 @@ mod vector {
     use super::super::vector::{queue_slots, shade_deferred, Skips, Vol};
     use super::super::vwalk::exp;
     use super::super::vwalk::Rays;
+    use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
@@ -232,7 +233,8 @@ mod vector {
         // group head's value; with shading its head waits in a slot
         // (position, colour, opacity) gathering the weights of the
         // samples that reuse it, and goes to the queue once.
-        let (th1, th2) = (S::load(a[18]), S::load(a[19]));
+        // (Groups of at most 3 samples, `group_size`'s largest.)
+        let (th1, th2, three) = (S::load(a[18]), S::load(a[19]), S::splat(3.0));
         let mut kc = zero;
         let mut fresh = S::from_bits(live_bits);
         let mut head_v = zero;
@@ -270,11 +272,7 @@ mod vector {
             }
             cnt = S::count(cnt, samp);
             let (v, head) = if GROUPED {
-                // `group_size(t, t_out)` divides the count: a head.
-                let g = one + S::keep(S::gt(t, th1), one) + S::keep(S::gt(t, th2), one);
-                let div = S::eq(S::floor(kc / g) * g, kc);
-                let head = S::and(samp, S::or(fresh, div));
-                fresh = S::but(fresh, samp);
+                let head = group_heads::<S>(t, kc, th1, th2, three, samp, &mut fresh);
                 kc = S::blend(samp, kc, kc + one);
                 if S::bits(head) != 0 {
                     cnt_interp = S::count(cnt_interp, head);

@@ -8,7 +8,7 @@ use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{drain_deferred, store_lanes};
 use super::vwalk::{Rays, VWalk};
-use super::walk::{walk_runs, RunRegs};
+use super::walk::{group_heads, walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::{Voxel, VoxelKind};
 
@@ -720,13 +720,7 @@ unsafe fn march<
         let (is_last, eval) = if R::ON {
             let is_last = S::and(act, S::eq(kv, rr.kend - one));
             let eval = if GROUPED {
-                // `group_size(t, t_out).min(cap)` divides k.
-                let g = one + S::keep(S::gt(t, rr.th1), one) + S::keep(S::gt(t, rr.th2), one);
-                let g = S::min(g, rr.capv);
-                let div = S::eq(S::floor(kv / g) * g, kv);
-                let eval = S::and(act, S::or(rr.fresh, div));
-                rr.fresh = S::but(rr.fresh, act);
-                eval
+                group_heads::<S>(t, kv, rr.th1, rr.th2, rr.capv, act, &mut rr.fresh)
             } else {
                 act
             };

@@ -40,6 +40,31 @@ pub(super) struct RunRegs<S: Simd> {
     pub slot: Slots<S>,
 }
 
+/// S0's grouped reuse, the lanes whose sample heads a group: of the
+/// lanes `act`, those that start afresh (`fresh`, cleared for them here)
+/// or whose count `k` is a multiple of `group_size(t, t_out)` — 1, 2 or 3
+/// by the thirds `th1`, `th2` of the exit, at most `cap`. The step-per-
+/// block runs and `threshold` both group with it, as the scalar
+/// `Grouped` does.
+#[inline(always)]
+pub(super) unsafe fn group_heads<S: Simd>(
+    t: S::F,
+    k: S::F,
+    th1: S::F,
+    th2: S::F,
+    cap: S::F,
+    act: S::M,
+    fresh: &mut S::M,
+) -> S::M {
+    let one = S::splat(1.0);
+    let g = one + S::keep(S::gt(t, th1), one) + S::keep(S::gt(t, th2), one);
+    let g = S::min(g, cap);
+    let div = S::eq(S::floor(k / g) * g, k);
+    let heads = S::and(act, S::or(*fresh, div));
+    *fresh = S::but(*fresh, act);
+    heads
+}
+
 impl<S: Simd> RunRegs<S> {
     /// The lanes of `found` take their next run: samples `n0..n1` (`n0`
     /// into `kv`) at step `step` on the tables' level `level` (a whole
