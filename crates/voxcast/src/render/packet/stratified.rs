@@ -63,8 +63,9 @@ mod vector {
     use super::super::super::stochastic::interval_random;
     use super::super::shade::{Deferred, Light};
     use super::super::simd::{Simd, W16, W8};
-    use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
+    use super::super::tail::{drain_deferred, store_lanes};
     use super::super::vector::{shade_deferred, Skips, Vol};
+    use super::super::vwalk::exp;
     use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use crate::transfer::LUT_SIZE;
@@ -248,10 +249,17 @@ mod vector {
                 // `Lut::index`: below 0 (or NaN) nothing.
                 let mut valid = S::and(samp, S::ge(v, zero));
                 let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
-                let mut qv = S::rows(q, S::sll(idx, 2));
+                let [mut qr, mut qg, mut qb, mut al] = S::rows(q, S::sll(idx, 2));
                 // The last interval stands for its own length.
-                over_stretch::<S>(&mut qv, S::and(valid, is_last), sigma, idx, len, inv_unit);
-                let [qr, qg, qb, al] = qv;
+                let last = S::and(valid, is_last);
+                if S::bits(last) != 0 {
+                    let sg = S::gather_f::<4>(sigma, idx);
+                    let ax = one - exp::<S>(zero - sg * len * inv_unit);
+                    let k = S::blend(S::gt(al, zero), zero, ax / al);
+                    let k = S::blend(last, one, k);
+                    (qr, qg, qb) = (qr * k, qg * k, qb * k);
+                    al = S::blend(last, al, ax);
+                }
                 let mut e = [zero; 3];
                 valid = S::and(valid, S::gt(al, zero));
                 if SHADE {
@@ -265,7 +273,13 @@ mod vector {
                 } else {
                     e = [S::keep(valid, qr), S::keep(valid, qg), S::keep(valid, qb)];
                 }
-                composite::<S>(&mut col, &mut live, valid, e, al, [we, wa], stop);
+                let al = S::keep(valid, al);
+                let tr = one - col[3];
+                col[0] = col[0] + e[0] * we * tr;
+                col[1] = col[1] + e[1] * we * tr;
+                col[2] = col[2] + e[2] * we * tr;
+                col[3] = col[3] + al * wa * tr;
+                live = S::but(live, S::and(valid, S::ge(col[3], stop)));
             }
             // Every active lane that did not jump takes its next interval.
             kv = S::blend(S::but(act, jumped), kv, kv + one);
