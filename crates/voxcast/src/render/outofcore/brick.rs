@@ -419,7 +419,6 @@ fn march_rows<T: Stored>(
         imp: None,
         runs: None,
         thr: None,
-        strat: None,
         surface: None,
     };
     rows.map(|row| {

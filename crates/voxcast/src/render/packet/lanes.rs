@@ -593,7 +593,6 @@ mod tests {
                     imp: None,
                     runs: None,
                     thr: None,
-                    strat: None,
                     surface: None,
                 };
                 let g = pk.geometry();

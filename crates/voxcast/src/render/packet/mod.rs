@@ -74,7 +74,6 @@ mod importance;
 mod lod;
 mod runs;
 mod shade;
-mod stratified;
 mod threshold;
 mod zpairs;
 
@@ -88,7 +87,6 @@ use importance::ImpLane;
 pub(in crate::render) use lod::VLodParams;
 use runs::WalkStart;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
-pub(in crate::render) use stratified::Strat;
 pub(in crate::render) use threshold::Thr;
 pub(in crate::render) use zpairs::ZPairs;
 
@@ -214,8 +212,6 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub runs: Option<&'a R>,
     /// `threshold`'s ranges, steps and tables, when the packets march it.
     pub thr: Option<Thr<'a>>,
-    /// `stratified`'s extinctions, when the packets march it.
-    pub strat: Option<Strat<'a>>,
     /// Opaque geometry the rays stop at (S0 Fig. 9–13): a lane's ray ends
     /// at its first hit, and the surface's lit colour is composited
     /// behind what it gathered, as [`super::trace::trace`] does.
@@ -243,11 +239,8 @@ struct State<'s> {
     count: &'s mut [[u32; 3]],
     alive: &'s mut [bool],
     walk: &'s mut Counters,
-    /// `threshold`'s lanes: the end of the walk, and the exit;
-    /// `stratified`'s: the walk's start and end.
+    /// `threshold`'s lanes: the end of the walk, and the exit.
     ends: &'s [[f32; 2]],
-    /// `stratified`'s lanes: their rays' random keys.
-    keys: &'s [u64],
 }
 
 impl State<'_> {
@@ -262,8 +255,7 @@ impl State<'_> {
             count: &mut self.count[r.clone()],
             alive: &mut self.alive[r.clone()],
             walk: self.walk,
-            ends: &self.ends[r.clone()],
-            keys: &self.keys[r],
+            ends: &self.ends[r],
         }
     }
 }
@@ -461,7 +453,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // behind the lane's samples).
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         let mut ends = [[0.0f32; 2]; LANES];
-        let mut keys = [0u64; LANES];
         // A fixed step with no surface: the lanes set up in vector
         // registers ([`lanes`]); a step-per-block march whose walks run in
         // vector registers, with no surface: the lanes and where their
@@ -476,11 +467,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 .is_some_and(|r| r.vector().is_some() || r.lod().is_some());
         #[cfg(target_arch = "x86_64")]
         let vector_set_up = vector_runs
-            || (!R::ON
-                && self.thr.is_none()
-                && self.strat.is_none()
-                && self.imp.is_none()
-                && self.surface.is_none());
+            || (!R::ON && self.thr.is_none() && self.imp.is_none() && self.surface.is_none());
         #[cfg(not(target_arch = "x86_64"))]
         let vector_set_up = false;
         #[cfg(target_arch = "x86_64")]
@@ -533,12 +520,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                         ends[i] = e;
                         l
                     })
-                } else if self.strat.is_some() {
-                    self.strat_lane(r, limit, pixel, pass, stats)
-                        .map(|(l, e, key)| {
-                            (ends[i], keys[i]) = (e, key);
-                            l
-                        })
                 } else if self.imp.is_some() {
                     self.imp_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                         imp[i] = Some(w);
@@ -569,7 +550,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             alive: &mut alive,
             walk: &mut walk,
             ends: &ends,
-            keys: &keys,
         };
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
@@ -616,7 +596,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         count: &mut [[u32; 3]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        debug_assert!(self.imp.is_none() && self.thr.is_none() && self.strat.is_none() && !R::ON);
+        debug_assert!(self.imp.is_none() && self.thr.is_none() && !R::ON);
         debug_assert!(self
             .empty
             .is_none_or(|e| { e.len() == self.f.block_counts.iter().product::<usize>() }));
@@ -632,7 +612,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             alive,
             walk: &mut walk,
             ends: &[[0.0; 2]; LANES],
-            keys: &[0; LANES],
         };
         // SAFETY: as in `render`: the caller took `level` from [`level`],
         // checked [`fits`] for the grid and [`shades`] for the shading;
@@ -753,25 +732,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 Level::Avx2Loads => thr!(thr_avx2_loads),
                 Level::Avx512 => thr!(thr_avx512),
                 Level::Avx512Loads => thr!(thr_avx512_loads),
-            };
-        }
-        if !R::ON && self.strat.is_some() {
-            // `stratified`: skipping and shading (its own loop).
-            macro_rules! strat {
-                ($f:ident) => {
-                    match (choice.0, choice.1) {
-                        (false, false) => stratified::$f::<T, R, false, false>(self, lanes, st),
-                        (true, false) => stratified::$f::<T, R, true, false>(self, lanes, st),
-                        (false, true) => stratified::$f::<T, R, false, true>(self, lanes, st),
-                        (true, true) => stratified::$f::<T, R, true, true>(self, lanes, st),
-                    }
-                };
-            }
-            return match self.level {
-                Level::Avx2 => strat!(strat_avx2),
-                Level::Avx2Loads => strat!(strat_avx2_loads),
-                Level::Avx512 => strat!(strat_avx512),
-                Level::Avx512Loads => strat!(strat_avx512_loads),
             };
         }
         match self.level {
