@@ -648,9 +648,9 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // `Job::packets` skips empty blocks only on the fixed step (no
         // runs) and groups only in runs (or in `threshold`'s loop, below);
         // `importance` has no runs. `R::ON` is known at compile time, so
-        // the other branch is not built: 176 copies of the march where all combinations made 320
-        // (`cargo llvm-lines`), and the march was most of the crate's
-        // build time.
+        // the other branch is not built: 176 copies of the march where all
+        // combinations made 320 (`cargo llvm-lines`), and the march was
+        // most of the crate's build time.
         macro_rules! go {
             ($f:ident) => {
                 if R::ON {
