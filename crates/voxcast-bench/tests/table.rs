@@ -14,7 +14,7 @@ fn table(simd: Simd) -> String {
     scene.render.simd = simd;
     let prepared = scene.prepare().unwrap();
     let config = BenchConfig {
-        methods: parse_methods("uniform,stratified").unwrap(),
+        methods: parse_methods("uniform,mc").unwrap(),
         repeat: 1,
         warmup: 0,
         cache_dir: None,
@@ -34,9 +34,7 @@ fn the_table_says_which_loop_ran() {
         );
         assert!(!forced.contains("yet"), "{forced}");
         assert!(
-            auto.contains(
-                "Scalar loop (these methods do not run in the SIMD packets yet): stratified."
-            ),
+            auto.contains("Scalar loop (these methods do not run in the SIMD packets yet): mc."),
             "{auto}"
         );
     } else {

@@ -173,6 +173,7 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
 /// The SIMD packets, at every level this CPU has, against the scalar loop:
 /// every stored type, both fixed-step methods, `importance`, `threshold`
 /// and `threshold+grouped` (the same interpolations, and some reused),
+/// `stratified` (a random position per interval, a key per ray and pass),
 /// skipping on and off, early termination on and off, flat and Phong,
 /// every optical model, several passes of jitter.
 /// On a CPU without AVX2 there is no level and the test checks nothing (the
@@ -195,6 +196,7 @@ fn packets_give_the_scalar_pixels() {
             (Method::Importance, false),
             (Method::Threshold, false),
             (Method::Threshold, true),
+            (Method::Stratified, false),
         ] {
             for skip_empty in [true, false] {
                 for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
@@ -284,8 +286,10 @@ fn packets_give_the_scalar_pixels() {
 /// `importance`'s vector walks, through the same long empty stretches,
 /// give the scalar walk's samples; `lod`'s leaf walks, which jump the
 /// same cubes where nothing is pending, give the scalar octree walk's
-/// pixels and samples; and `threshold`'s lanes, which jump them and start
-/// again on the base grid, sample where the scalar march restarts.
+/// pixels and samples; `threshold`'s lanes, which jump them and start
+/// again on the base grid, sample where the scalar march restarts; and
+/// `stratified`'s, which go on at the first interval past the cube,
+/// take the scalar march's random positions.
 #[test]
 fn packets_jump_the_empty_space_and_keep_the_samples() {
     use voxcast::volume::VoxelData;
@@ -339,6 +343,9 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             // Grouped `threshold` starts a group past each jump.
             (Method::Threshold, false, true),
             (Method::Threshold, true, true),
+            // `stratified` jumps to the first interval past the cube.
+            (Method::Stratified, false, false),
+            (Method::Stratified, true, false),
             // The step-per-block walks jump the empty cubes too.
             (Method::Adaptive, false, false),
             (Method::Adaptive, true, true),

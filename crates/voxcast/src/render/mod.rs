@@ -465,7 +465,7 @@ impl Job<'_> {
         let k = p.adaptive_k_ref();
         match p.method {
             Method::Uniform | Method::Jitter if !p.grouped => {
-                match self.packets::<T, ()>(f, &t, None, None, None) {
+                match self.packets::<T, ()>(f, &t, None, None, None, None) {
                     Some(out) => out,
                     None => self.grouped::<T, C, Sh, _>(f, sh, &t.steps(Fixed, k)),
                 }
@@ -496,7 +496,7 @@ impl Job<'_> {
                     sigma: self.lut.sigmas(),
                     grouped: p.grouped,
                 };
-                if let Some(out) = self.packets::<T, ()>(f, &t, None, None, Some(thr)) {
+                if let Some(out) = self.packets::<T, ()>(f, &t, None, None, Some(thr), None) {
                     return out;
                 }
                 let alphas: Vec<_> = p
@@ -513,6 +513,13 @@ impl Job<'_> {
                 self.grouped::<T, C, Sh, _>(f, sh, &m)
             }
             Method::Stratified => {
+                // In SIMD packets where the CPU and the render allow.
+                let strat = packet::Strat {
+                    sigma: self.lut.sigmas(),
+                };
+                if let Some(out) = self.packets::<T, ()>(f, &t, None, None, None, Some(strat)) {
+                    return out;
+                }
                 let full_alphas = self.lut.alphas(p.step);
                 let m = stochastic::Stratified {
                     full_alphas: &full_alphas,
@@ -538,7 +545,7 @@ impl Job<'_> {
                     steps: &steps,
                     tables: &tables,
                 };
-                if let Some(out) = self.packets::<T, ()>(f, &t, Some(imp), None, None) {
+                if let Some(out) = self.packets::<T, ()>(f, &t, Some(imp), None, None, None) {
                     return out;
                 }
                 let m = stochastic::Importance {
@@ -630,7 +637,7 @@ impl Job<'_> {
                 vector: packet::vector_params(m, &k, f.skip_empty, grouped),
                 lod: None,
             };
-            if let Some(out) = self.packets(f, t, None, Some(&runs), None) {
+            if let Some(out) = self.packets(f, t, None, Some(&runs), None, None) {
                 return out;
             }
         }
@@ -695,12 +702,13 @@ impl Job<'_> {
                 skip_empty: f.skip_empty,
             }),
         };
-        self.packets(f, &t, None, Some(&runs), None)
+        self.packets(f, &t, None, Some(&runs), None, None)
     }
 
     /// A render through the SIMD ray packets (packet/) — a fixed step,
-    /// `importance` (`imp`) or a step-per-block march (`runs`) — where
-    /// the CPU and the render allow; `None` where the scalar loop must run.
+    /// `importance` (`imp`), a step-per-block march (`runs`), `threshold`
+    /// (`thr`) or `stratified` (`strat`) — where the CPU and the render
+    /// allow; `None` where the scalar loop must run.
     fn packets<T: Voxel, R: packet::Runs<T>>(
         &self,
         f: &Frame<'_, T>,
@@ -708,6 +716,7 @@ impl Job<'_> {
         imp: Option<packet::Imp<'_>>,
         runs: Option<&R>,
         thr: Option<packet::Thr<'_>>,
+        strat: Option<packet::Strat<'_>>,
     ) -> Option<Option<(Image, RenderStats)>> {
         let p = self.params;
         // The shading `shaded` picks.
@@ -741,6 +750,7 @@ impl Job<'_> {
             imp,
             runs,
             thr,
+            strat,
             surface: self.surface,
         };
         let (passes, bg) = (self.passes(), self.background());

@@ -155,8 +155,16 @@ pub(super) fn gamma(rng: &mut Rng, a: f32) -> f32 {
 /// A uniform number for interval `k` of a ray (counter-based, so a stretch
 /// can ask for any interval's position in any order).
 #[inline(always)]
-fn interval_random(key: u64, k: u64) -> f32 {
+pub(super) fn interval_random(key: u64, k: u64) -> f32 {
     (splitmix(key ^ k.wrapping_mul(0xD6E8_FEB8_6659_FD93)) >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// `stratified`'s key for pixel `pixel`'s ray in pass `pass`: the first
+/// 64 bits of the pixel's random stream.
+#[inline(always)]
+pub(super) fn stratified_key(seed: u64, pixel: (u32, u32), pass: u32) -> u64 {
+    let mut rng = Rng::for_pixel(seed, pixel.0, pixel.1, pass);
+    rng.next_u32() as u64 | (rng.next_u32() as u64) << 32
 }
 
 /// The pixel's random stream for this pass.
@@ -183,8 +191,7 @@ impl<T: Voxel> Marcher<T> for Stratified<'_> {
     ) -> bool {
         let (t_in, t_out) = (seg.t_in, seg.t_out);
         let s = f.step;
-        let mut rng = rng(f, seg);
-        let key = rng.next_u32() as u64 | (rng.next_u32() as u64) << 32;
+        let key = stratified_key(f.seed, seg.pixel, seg.pass);
         let last = ((t_out - t_in) / s).ceil().max(1.0) as u64 - 1;
         // Interval k's sample position and the length it stands for (the
         // last interval is cut at t_out).

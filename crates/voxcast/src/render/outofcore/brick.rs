@@ -419,6 +419,7 @@ fn march_rows<T: Stored>(
         imp: None,
         runs: None,
         thr: None,
+        strat: None,
         surface: None,
     };
     rows.map(|row| {

@@ -593,6 +593,7 @@ mod tests {
                     imp: None,
                     runs: None,
                     thr: None,
+                    strat: None,
                     surface: None,
                 };
                 let g = pk.geometry();

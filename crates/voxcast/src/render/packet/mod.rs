@@ -74,6 +74,7 @@ mod importance;
 mod lod;
 mod runs;
 mod shade;
+mod stratified;
 mod threshold;
 mod zpairs;
 
@@ -87,6 +88,7 @@ use importance::ImpLane;
 pub(in crate::render) use lod::VLodParams;
 use runs::WalkStart;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
+pub(in crate::render) use stratified::Strat;
 pub(in crate::render) use threshold::Thr;
 pub(in crate::render) use zpairs::ZPairs;
 
@@ -212,6 +214,8 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub runs: Option<&'a R>,
     /// `threshold`'s ranges, steps and tables, when the packets march it.
     pub thr: Option<Thr<'a>>,
+    /// `stratified`'s extinctions, when the packets march it.
+    pub strat: Option<Strat<'a>>,
     /// Opaque geometry the rays stop at (S0 Fig. 9–13): a lane's ray ends
     /// at its first hit, and the surface's lit colour is composited
     /// behind what it gathered, as [`super::trace::trace`] does.
@@ -239,8 +243,11 @@ struct State<'s> {
     count: &'s mut [[u32; 3]],
     alive: &'s mut [bool],
     walk: &'s mut Counters,
-    /// `threshold`'s lanes: the end of the walk, and the exit.
+    /// `threshold`'s lanes: the end of the walk, and the exit;
+    /// `stratified`'s: the walk's start and end.
     ends: &'s [[f32; 2]],
+    /// `stratified`'s lanes: their rays' random keys.
+    keys: &'s [u64],
 }
 
 impl State<'_> {
@@ -255,7 +262,8 @@ impl State<'_> {
             count: &mut self.count[r.clone()],
             alive: &mut self.alive[r.clone()],
             walk: self.walk,
-            ends: &self.ends[r],
+            ends: &self.ends[r.clone()],
+            keys: &self.keys[r],
         }
     }
 }
@@ -453,6 +461,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // behind the lane's samples).
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         let mut ends = [[0.0f32; 2]; LANES];
+        let mut keys = [0u64; LANES];
         // A fixed step with no surface: the lanes set up in vector
         // registers ([`lanes`]); a step-per-block march whose walks run in
         // vector registers, with no surface: the lanes and where their
@@ -467,7 +476,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 .is_some_and(|r| r.vector().is_some() || r.lod().is_some());
         #[cfg(target_arch = "x86_64")]
         let vector_set_up = vector_runs
-            || (!R::ON && self.thr.is_none() && self.imp.is_none() && self.surface.is_none());
+            || (!R::ON
+                && self.thr.is_none()
+                && self.strat.is_none()
+                && self.imp.is_none()
+                && self.surface.is_none());
         #[cfg(not(target_arch = "x86_64"))]
         let vector_set_up = false;
         #[cfg(target_arch = "x86_64")]
@@ -520,6 +533,12 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                         ends[i] = e;
                         l
                     })
+                } else if self.strat.is_some() {
+                    self.strat_lane(r, limit, pixel, pass, stats)
+                        .map(|(l, e, key)| {
+                            (ends[i], keys[i]) = (e, key);
+                            l
+                        })
                 } else if self.imp.is_some() {
                     self.imp_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                         imp[i] = Some(w);
@@ -550,6 +569,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             alive: &mut alive,
             walk: &mut walk,
             ends: &ends,
+            keys: &keys,
         };
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
@@ -596,7 +616,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         count: &mut [[u32; 3]; LANES],
         alive: &mut [bool; LANES],
     ) {
-        debug_assert!(self.imp.is_none() && self.thr.is_none() && !R::ON);
+        debug_assert!(self.imp.is_none() && self.thr.is_none() && self.strat.is_none() && !R::ON);
         debug_assert!(self
             .empty
             .is_none_or(|e| { e.len() == self.f.block_counts.iter().product::<usize>() }));
@@ -612,6 +632,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             alive,
             walk: &mut walk,
             ends: &[[0.0; 2]; LANES],
+            keys: &[0; LANES],
         };
         // SAFETY: as in `render`: the caller took `level` from [`level`],
         // checked [`fits`] for the grid and [`shades`] for the shading;
@@ -732,6 +753,16 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 Level::Avx2Loads => thr!(thr_avx2_loads),
                 Level::Avx512 => thr!(thr_avx512),
                 Level::Avx512Loads => thr!(thr_avx512_loads),
+            };
+        }
+        if !R::ON && self.strat.is_some() {
+            // `stratified`: its own loop, which reads skipping and shading
+            // as flags.
+            return match self.level {
+                Level::Avx2 => stratified::strat_avx2::<T, R>(self, lanes, st),
+                Level::Avx2Loads => stratified::strat_avx2_loads::<T, R>(self, lanes, st),
+                Level::Avx512 => stratified::strat_avx512::<T, R>(self, lanes, st),
+                Level::Avx512Loads => stratified::strat_avx512_loads::<T, R>(self, lanes, st),
             };
         }
         match self.level {

@@ -77,9 +77,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 mod vector {
     use super::super::shade::{Deferred, Light, Slots};
     use super::super::simd::{Simd, W16, W8};
-    use super::super::tail::{drain_deferred, store_lanes};
+    use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
     use super::super::vector::{queue_slots, shade_deferred, Skips, Vol};
-    use super::super::vwalk::exp;
     use super::super::vwalk::Rays;
     use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
@@ -294,18 +293,12 @@ mod vector {
             // `Lut::index`: below 0 (or NaN) nothing.
             let mut valid = S::and(samp, S::ge(v, zero));
             let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
-            let [mut qr, mut qg, mut qb, mut al] = S::rows(q, S::sll(idx, 2) + S::mullo(r, rows));
+            let mut qv = S::rows(q, S::sll(idx, 2) + S::mullo(r, rows));
             // A sample whose step reaches the exit stands for the stretch to
             // the last one's end instead (`Segment::t_end`).
             let last = S::and(valid, S::ge(t + step, t_out));
-            if S::bits(last) != 0 {
-                let sg = S::gather_f::<4>(sigma, idx);
-                let ax = one - exp::<S>(zero - sg * (t_end - t) * inv_unit);
-                let k = S::blend(S::gt(al, zero), zero, ax / al);
-                let k = S::blend(last, one, k);
-                (qr, qg, qb) = (qr * k, qg * k, qb * k);
-                al = S::blend(last, al, ax);
-            }
+            over_stretch::<S>(&mut qv, last, sigma, idx, t_end - t, inv_unit);
+            let [qr, qg, qb, al] = qv;
             let mut e = [zero; 3];
             valid = S::and(valid, S::gt(al, zero));
             if SHADE && GROUPED {
@@ -339,13 +332,7 @@ mod vector {
             } else {
                 e = [S::keep(valid, qr), S::keep(valid, qg), S::keep(valid, qb)];
             }
-            let al = S::keep(valid, al);
-            let tr = one - col[3];
-            col[0] = col[0] + e[0] * we * tr;
-            col[1] = col[1] + e[1] * we * tr;
-            col[2] = col[2] + e[2] * we * tr;
-            col[3] = col[3] + al * wa * tr;
-            live = S::but(live, S::and(valid, S::ge(col[3], stop)));
+            composite::<S>(&mut col, &mut live, valid, e, al, [we, wa], stop);
             t = S::blend(samp, t, t + step);
         }
         if SHADE && GROUPED {
