@@ -583,47 +583,4 @@ mod tests {
         );
         assert!(Backend::Gpu.renders_geometry(None));
     }
-
-    /// Steps are in the volume's voxels even where its opacity unit is a
-    /// finer length (a pyramid level read whole): the same samples as the
-    /// volume without it, and a more opaque picture (each step is two
-    /// opacity units long).
-    #[test]
-    fn steps_are_voxels_of_the_volume_not_its_opacity_unit() {
-        let mut v =
-            crate::builtin::sized("demo", [24, 20, 16], crate::volume::ScalarType::U8).unwrap();
-        v.set_spacing(glam::Vec3::splat(2.0)).unwrap();
-        let mut p = RenderParams {
-            width: 24,
-            height: 24,
-            method: Method::Adaptive,
-            ..RenderParams::default()
-        };
-        p.adaptive.max_step = Some(2.0);
-        p.threshold.steps = [0.5, 1.0, 2.0];
-        assert!(matches!(
-            p.in_opacity_units(&v),
-            std::borrow::Cow::Borrowed(_)
-        ));
-        let mut fine = v.clone();
-        fine.opacity_unit = Some(1.0);
-        let q = p.in_opacity_units(&fine);
-        assert_eq!(q.step, 1.0);
-        assert_eq!(
-            (q.adaptive.min_step, q.adaptive.max_step),
-            (None, Some(4.0))
-        );
-        assert_eq!(q.threshold.steps, [1.0, 2.0, 4.0]);
-        let tf = crate::transfer::TransferFunction::preset("grayscale").unwrap();
-        let cam = crate::camera::CameraParams::default();
-        p.method = Method::Uniform;
-        let render = |v: &Volume| {
-            let w = [0.0, 255.0];
-            crate::render::render(v, &tf, w, &cam, &p, &|_, _| {}).unwrap()
-        };
-        let (a, sa) = render(&v);
-        let (b, sb) = render(&fine);
-        assert_eq!(sa.samples, sb.samples);
-        assert!(a.to_srgb8() != b.to_srgb8());
-    }
 }

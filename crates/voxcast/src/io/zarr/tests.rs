@@ -1,7 +1,6 @@
 use super::write::{level_dims, write_volume, Compression, WriteOptions, ZarrFormat};
 use super::*;
 use crate::volume::chunked::downsample2;
-use crate::volume::MemorySource;
 
 /// A u16 volume of odd dims with structure and an empty corner (x < 8,
 /// y < 8: zero), so some chunks hold only the fill value.
@@ -258,59 +257,9 @@ fn a_level_is_read_by_number_and_a_missing_one_is_named() {
     assert!(e.contains("levels 0…1"), "{e}");
 }
 
-#[test]
-fn the_out_of_core_render_of_a_store_is_the_in_core_picture() {
-    use crate::camera::CameraParams;
-    use crate::render::outofcore::{render_chunked, OutOfCoreParams};
-    use crate::render::RenderParams;
-    use crate::transfer::TransferFunction;
-    let vol = crate::builtin::open("demo").unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let p = dir.path().join("demo.zarr");
-    let o = WriteOptions {
-        chunk: [32, 32, 32],
-        ..Default::default()
-    };
-    write_volume(&vol, &p, &o, &|_, _| {}).unwrap();
-    let store = ZarrStore::open(&p).unwrap();
-    let mem = MemorySource::new(vol.clone(), 0, [32, 32, 32]).unwrap();
-    let tf = TransferFunction::auto(&vol);
-    let window = tf.window_for(&vol, None);
-    let cam = CameraParams {
-        azimuth: 30.0,
-        elevation: 20.0,
-        ..Default::default()
-    };
-    let rp = RenderParams {
-        width: 64,
-        height: 64,
-        ..Default::default()
-    };
-    let ooc = OutOfCoreParams {
-        budget: 1 << 20,
-        level: Some(0),
-        ..Default::default()
-    };
-    let run = |src: &dyn ChunkedSource| {
-        render_chunked(
-            src,
-            &tf,
-            window,
-            &cam,
-            &rp,
-            &ooc,
-            &|_, _| {},
-            &std::sync::atomic::AtomicBool::new(false),
-        )
-        .unwrap()
-    };
-    let (a, _, sa) = run(&store);
-    let (b, _, sb) = run(&mem);
-    assert_eq!(a.pixels, b.pixels);
-    // The store's ranges skip the empty chunks without reading them.
-    assert!(sa.empty > 0 && sa.bytes_read > 0, "{sa:?}");
-    assert!(sa.cache.misses < sb.cache.misses, "{sa:?} {sb:?}");
-}
+// The out-of-core render of a store against the in-core picture:
+// tests/outofcore.rs (a unit test that renders makes the library's test
+// build compile every SIMD ray loop again; see render/outofcore/mod.rs).
 
 /// The files under `dir` as a zip file of stored (uncompressed) entries,
 /// as OME-Zarr's zipped stores are written: a minimal writer (no zip64).

@@ -852,5 +852,6 @@ fn screen_rect(cam: &Camera, lo: Vec3, hi: Vec3, w: u32, h: u32) -> Option<[u32;
     (r[0] < r[1] && r[2] < r[3]).then_some(r)
 }
 
-#[cfg(test)]
-mod tests;
+// Its tests render, so they are integration tests (tests/outofcore.rs): a
+// unit test that renders makes the library's test build compile every SIMD
+// ray loop a second time.

@@ -36,8 +36,8 @@
 //! with `ert = 1`; only the uniform marchers (`uniform`, `jitter`) run.
 
 mod exchange;
-#[cfg(test)]
-mod tests;
+// Its tests render, so they are integration tests (tests/sortlast.rs): see
+// outofcore/mod.rs.
 
 pub use exchange::{Exchange, ThreadExchange};
 

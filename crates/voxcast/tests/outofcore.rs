@@ -1,7 +1,15 @@
-use super::*;
-use crate::camera::Projection;
-use crate::metrics::psnr;
-use crate::volume::{MemorySource, Volume, VoxelData};
+//! Out-of-core rendering (`render::outofcore`): bricks in visibility order,
+//! the budget, the levels, the packets against the scalar loop.
+
+use glam::Vec3;
+use std::sync::atomic::AtomicBool;
+use voxcast::camera::{Camera, CameraParams, Projection};
+use voxcast::metrics::psnr;
+use voxcast::render::outofcore::*;
+use voxcast::render::{Method, RenderParams, Simd};
+use voxcast::transfer::TransferFunction;
+use voxcast::volume::{Level, MemorySource, Volume, VoxelData};
+use voxcast::Image;
 
 fn params(size: u32, shading: bool) -> RenderParams {
     RenderParams {
@@ -24,7 +32,7 @@ fn camera(zoom: f32, projection: Projection) -> CameraParams {
 
 fn in_core(vol: &Volume, tf: &TransferFunction, cam: &CameraParams, p: &RenderParams) -> Image {
     let window = tf.window_for(vol, None);
-    crate::render::render(vol, tf, window, cam, p, &|_, _| {})
+    voxcast::render::render(vol, tf, window, cam, p, &|_, _| {})
         .unwrap()
         .0
 }
@@ -72,7 +80,7 @@ fn level0(budget: u64) -> OutOfCoreParams {
 
 #[test]
 fn bricks_in_visibility_order_give_the_in_core_picture() {
-    let vol = crate::builtin::open("demo").unwrap();
+    let vol = voxcast::builtin::open("demo").unwrap();
     let tf = TransferFunction::auto(&vol);
     // Chunks of uneven shape, so brick faces fall everywhere.
     let src = MemorySource::new(vol.clone(), 0, [20, 16, 24]).unwrap();
@@ -100,7 +108,7 @@ fn bricks_in_visibility_order_give_the_in_core_picture() {
 
 #[test]
 fn a_budget_of_a_few_chunks_evicts_and_gives_the_same_image() {
-    let vol = crate::builtin::open("demo").unwrap();
+    let vol = voxcast::builtin::open("demo").unwrap();
     let tf = TransferFunction::auto(&vol);
     let src = MemorySource::new(vol, 0, [16, 16, 16]).unwrap();
     let cam = camera(1.0, Projection::Perspective);
@@ -161,7 +169,7 @@ fn the_level_follows_the_size_of_a_pixel() {
 
 #[test]
 fn other_methods_are_refused_by_name() {
-    let vol = crate::builtin::open("sphere").unwrap();
+    let vol = voxcast::builtin::open("sphere").unwrap();
     let tf = TransferFunction::auto(&vol);
     let src = MemorySource::new(vol, 0, [32; 3]).unwrap();
     let mut p = params(32, false);
@@ -183,7 +191,7 @@ fn other_methods_are_refused_by_name() {
 
 #[test]
 fn a_coarser_level_reads_fewer_bytes_and_looks_alike() {
-    let vol = crate::builtin::open("demo").unwrap();
+    let vol = voxcast::builtin::open("demo").unwrap();
     let tf = TransferFunction::auto(&vol);
     let src = MemorySource::new(vol.clone(), 2, [32; 3]).unwrap();
     let cam = camera(1.0, Projection::Perspective);
@@ -206,7 +214,7 @@ fn packets_and_the_scalar_loop_march_bricks_to_the_same_pixels() {
     // shaded and flat, jittered, with early termination: every lane that
     // leaves a brick, ends, or terminates inside a packet must give the
     // pixel the scalar loop gives.
-    let demo = crate::builtin::open("demo").unwrap();
+    let demo = voxcast::builtin::open("demo").unwrap();
     let d = demo.dims();
     let u16v = Volume::new(
         d,
@@ -240,7 +248,7 @@ fn packets_and_the_scalar_loop_march_bricks_to_the_same_pixels() {
             p.jitter = true;
             let cam = camera(1.0, Projection::Perspective);
             let (simd, s1) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
-            p.simd = crate::render::Simd::Scalar;
+            p.simd = Simd::Scalar;
             let (scalar, s2) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
             let worst = worst_diff(&simd, &scalar);
             assert!(
@@ -258,7 +266,7 @@ fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_range
     // The demo's bricks hold transparent cells: with skipping the packets
     // take fewer samples and give the same pixels; a second frame of the
     // same renderer reuses the cell ranges and gives the same image.
-    let vol = crate::builtin::open("demo").unwrap();
+    let vol = voxcast::builtin::open("demo").unwrap();
     let tf = TransferFunction::auto(&vol);
     let window = tf.window_for(&vol, None);
     let src = MemorySource::new(vol.clone(), 0, [24, 20, 32]).unwrap();
@@ -275,7 +283,7 @@ fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_range
     assert!(worst < 1e-4, "skipping changed a pixel by {worst}");
     assert_eq!(skip.pixels, again.pixels, "the warm frame differs");
     assert_eq!(s_skip.samples, s_again.samples);
-    if crate::render::packet::level(crate::render::Simd::Auto).is_some() {
+    if voxcast::render::simd_level(Simd::Auto).is_some() {
         assert!(
             s_skip.samples < s_all.samples,
             "skipping took {} samples, not fewer than {}",
@@ -316,7 +324,7 @@ fn cells_of_zeros_are_skipped_under_a_map_whose_opacity_rises_from_zero() {
     p.jitter = false;
     p.ert = 1.0;
     let (skip, s_skip, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
-    let (_, s_in) = crate::render::render(&vol, &tf, window, &cam, &p, &|_, _| {}).unwrap();
+    let (_, s_in) = voxcast::render::render(&vol, &tf, window, &cam, &p, &|_, _| {}).unwrap();
     p.skip_empty = false;
     let (all, s_all, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
     let worst = worst_diff(&skip, &all);
@@ -324,7 +332,7 @@ fn cells_of_zeros_are_skipped_under_a_map_whose_opacity_rises_from_zero() {
     // As few samples as the in-core march with its blocks (measured: 14906
     // out of core against 20145 in core, and 48376 with the old margin);
     // the packets skip cells inside the box of the visible ones.
-    let packets = crate::render::packet::level(crate::render::Simd::Auto).is_some();
+    let packets = voxcast::render::simd_level(Simd::Auto).is_some();
     assert!(
         s_skip.samples * 5 <= s_in.samples * 6 && (!packets || s_skip.samples < s_all.samples),
         "out of core {} samples ({} without skipping), in core {}",
@@ -375,7 +383,7 @@ fn levels_chosen_by_region_cover_each_stretch_of_a_ray_once() {
     p.ert = 1.0;
     for shading in [false, true] {
         p.shading = shading;
-        for simd in [crate::render::Simd::Auto, crate::render::Simd::Scalar] {
+        for simd in [Simd::Auto, Simd::Scalar] {
             p.simd = simd;
             let (mixed, s) = out_of_core(&src, &tf, &cam, &p, &per_region(64 << 20));
             let (fine, s0) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
@@ -535,4 +543,59 @@ fn resident_only_wants_no_more_than_the_budget_holds() {
         }
     }
     assert!(finished, "still wanting chunks after 12 frames");
+}
+
+/// A Zarr store written from the demo volume renders out of core as the
+/// same volume held in memory, and its ranges skip the empty chunks.
+#[test]
+fn the_out_of_core_render_of_a_store_is_the_in_core_picture() {
+    use voxcast::io::zarr::write::{write_volume, WriteOptions};
+    use voxcast::io::zarr::ZarrStore;
+    use voxcast::volume::ChunkedSource;
+    let vol = voxcast::builtin::open("demo").unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("demo.zarr");
+    let o = WriteOptions {
+        chunk: [32, 32, 32],
+        ..Default::default()
+    };
+    write_volume(&vol, &p, &o, &|_, _| {}).unwrap();
+    let store = ZarrStore::open(&p).unwrap();
+    let mem = MemorySource::new(vol.clone(), 0, [32, 32, 32]).unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let window = tf.window_for(&vol, None);
+    let cam = CameraParams {
+        azimuth: 30.0,
+        elevation: 20.0,
+        ..Default::default()
+    };
+    let rp = RenderParams {
+        width: 64,
+        height: 64,
+        ..Default::default()
+    };
+    let ooc = OutOfCoreParams {
+        budget: 1 << 20,
+        level: Some(0),
+        ..Default::default()
+    };
+    let run = |src: &dyn ChunkedSource| {
+        render_chunked(
+            src,
+            &tf,
+            window,
+            &cam,
+            &rp,
+            &ooc,
+            &|_, _| {},
+            &std::sync::atomic::AtomicBool::new(false),
+        )
+        .unwrap()
+    };
+    let (a, _, sa) = run(&store);
+    let (b, _, sb) = run(&mem);
+    assert_eq!(a.pixels, b.pixels);
+    // The store's ranges skip the empty chunks without reading them.
+    assert!(sa.empty > 0 && sa.bytes_read > 0, "{sa:?}");
+    assert!(sa.cache.misses < sb.cache.misses, "{sa:?} {sb:?}");
 }

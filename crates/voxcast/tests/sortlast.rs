@@ -1,9 +1,15 @@
-use super::*;
-use crate::camera::Projection;
-use crate::metrics::psnr;
-use crate::render::outofcore::OutOfCoreParams;
-use crate::render::{Method, Order};
-use crate::volume::{MemorySource, Volume, VoxelData};
+//! Sort-last rendering (`render::sortlast`): the decomposition, the
+//! compositing rounds, and over threads the one-process picture.
+
+use glam::Vec3;
+use std::sync::atomic::AtomicBool;
+use voxcast::camera::{CameraParams, Projection};
+use voxcast::metrics::psnr;
+use voxcast::render::outofcore::{OutOfCore, OutOfCoreParams};
+use voxcast::render::sortlast::*;
+use voxcast::render::{Method, Order, RenderParams};
+use voxcast::transfer::TransferFunction;
+use voxcast::volume::{MemorySource, Volume, VoxelData};
 
 #[test]
 fn rounds_are_the_prime_factors_smallest_first() {
