@@ -133,7 +133,7 @@ mod vector {
         // parameters: one loop per type and level (16) where the const
         // choices made 64, which cost six minutes of CI's dev build; a
         // predictable branch a step costs no measurable time.
-        let (skip, shade) = (pk.empty.is_some(), pk.shading.is_some());
+        let (skipping, shading) = (pk.empty.is_some(), pk.shading.is_some());
         // Per lane: origin, direction, entry, view, first interval, the
         // walk's ends, exit, last interval, colour and opacity.
         let mut a = [S::Af::default(); 19];
@@ -235,7 +235,7 @@ mod vector {
             // A sample belongs to the walk's stretch its position lies in.
             let mut samp = S::and(act, S::and(S::ge(t, w0), S::lt(t, w1)));
             let mut jumped = S::from_bits(0);
-            if skip && S::bits(samp) != 0 {
+            if skipping && S::bits(samp) != 0 {
                 let (skip, te) = skips.exit(&vol, p, &rays, samp);
                 if S::bits(skip) != 0 {
                     // Past the empty cube: the first interval whose
@@ -259,7 +259,7 @@ mod vector {
                 let [qr, qg, qb, al] = qv;
                 let mut e = [zero; 3];
                 valid = S::and(valid, S::gt(al, zero));
-                if shade {
+                if shading {
                     if S::bits(valid) != 0 {
                         let w = we * (one - col[3]);
                         if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
@@ -275,7 +275,7 @@ mod vector {
             // Every active lane that did not jump takes its next interval.
             kv = S::blend(S::but(act, jumped), kv, kv + one);
         }
-        if shade {
+        if shading {
             drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);
         }
         store_lanes::<S>(st, lanes, col, [cnt, cnt_shaded, cnt], live);
