@@ -1,6 +1,9 @@
 //! Out-of-core rendering (`render::outofcore`): bricks in visibility order,
 //! the budget, the levels, the packets against the scalar loop.
 
+mod common;
+use common::max_diff;
+
 use glam::Vec3;
 use std::sync::atomic::AtomicBool;
 use voxcast::camera::{Camera, CameraParams, Projection};
@@ -8,7 +11,7 @@ use voxcast::metrics::psnr;
 use voxcast::render::outofcore::*;
 use voxcast::render::{Method, RenderParams, Simd};
 use voxcast::transfer::TransferFunction;
-use voxcast::volume::{Level, MemorySource, Volume, VoxelData};
+use voxcast::volume::{ChunkedSource, Level, MemorySource, Volume, VoxelData};
 use voxcast::Image;
 
 fn params(size: u32, shading: bool) -> RenderParams {
@@ -45,6 +48,18 @@ fn out_of_core(
     ooc: &OutOfCoreParams,
 ) -> (Image, OutOfCoreStats) {
     let window = tf.window_for(src.volume(0), None);
+    out_of_core_in(src, window, tf, cam, p, ooc)
+}
+
+/// [`out_of_core`] of any chunked source, over the data window `window`.
+fn out_of_core_in(
+    src: &dyn ChunkedSource,
+    window: [f32; 2],
+    tf: &TransferFunction,
+    cam: &CameraParams,
+    p: &RenderParams,
+    ooc: &OutOfCoreParams,
+) -> (Image, OutOfCoreStats) {
     let (img, _, st) = render_chunked(
         src,
         tf,
@@ -57,15 +72,6 @@ fn out_of_core(
     )
     .unwrap();
     (img, st)
-}
-
-/// The largest difference of any channel of any pixel.
-fn worst_diff(a: &Image, b: &Image) -> f32 {
-    a.pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-        .fold(0f32, f32::max)
 }
 
 fn level0(budget: u64) -> OutOfCoreParams {
@@ -250,7 +256,7 @@ fn packets_and_the_scalar_loop_march_bricks_to_the_same_pixels() {
             let (simd, s1) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
             p.simd = Simd::Scalar;
             let (scalar, s2) = out_of_core(&src, &tf, &cam, &p, &level0(64 << 20));
-            let worst = worst_diff(&simd, &scalar);
+            let worst = max_diff(&simd, &scalar);
             assert!(
                 worst < 1e-4,
                 "{:?} shading {shading}: {worst}",
@@ -279,7 +285,7 @@ fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_range
     let (again, s_again, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
     p.skip_empty = false;
     let (all, s_all, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
-    let worst = worst_diff(&skip, &all);
+    let worst = max_diff(&skip, &all);
     assert!(worst < 1e-4, "skipping changed a pixel by {worst}");
     assert_eq!(skip.pixels, again.pixels, "the warm frame differs");
     assert_eq!(s_skip.samples, s_again.samples);
@@ -327,7 +333,7 @@ fn cells_of_zeros_are_skipped_under_a_map_whose_opacity_rises_from_zero() {
     let (_, s_in) = voxcast::render::render(&vol, &tf, window, &cam, &p, &|_, _| {}).unwrap();
     p.skip_empty = false;
     let (all, s_all, _) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
-    let worst = worst_diff(&skip, &all);
+    let worst = max_diff(&skip, &all);
     assert!(worst < 1e-4, "skipping changed a pixel by {worst}");
     // As few samples as the in-core march with its blocks (measured: 14906
     // out of core against 20145 in core, and 48376 with the old margin);
@@ -396,7 +402,7 @@ fn levels_chosen_by_region_cover_each_stretch_of_a_ray_once() {
                 s.cache.decoded_bytes < s0.cache.decoded_bytes,
                 "{s:?} {s0:?}"
             );
-            let worst = worst_diff(&mixed, &fine);
+            let worst = max_diff(&mixed, &fine);
             assert!(worst < 1e-4, "shading {shading} {simd:?}: {worst}");
         }
     }
@@ -483,7 +489,7 @@ fn resident_only_frames_never_read_and_refine_to_the_full_picture() {
         let (img, _, st) = ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
         if frame == 0 {
             assert_eq!(st.level, 2, "{st:?}");
-            assert!(worst_diff(&img, &coarse) < 1e-6, "the coarsest level");
+            assert!(max_diff(&img, &coarse) < 1e-6, "the coarsest level");
             assert!(!st.wanted.is_empty());
         } else {
             assert_eq!(st.cache.misses, 0, "frame {frame} read: {st:?}");
@@ -501,7 +507,7 @@ fn resident_only_frames_never_read_and_refine_to_the_full_picture() {
     assert_eq!(bases.first(), Some(&2), "{bases:?}");
     assert_eq!(bases.last(), Some(&0), "{bases:?}");
     assert!(bases.windows(2).all(|w| w[0] >= w[1]), "{bases:?}");
-    let worst = worst_diff(&last.unwrap(), &want);
+    let worst = max_diff(&last.unwrap(), &want);
     assert!(worst < 1e-5, "refined picture differs by {worst}");
 }
 
@@ -551,7 +557,6 @@ fn resident_only_wants_no_more_than_the_budget_holds() {
 fn the_out_of_core_render_of_a_store_is_the_in_core_picture() {
     use voxcast::io::zarr::write::{write_volume, WriteOptions};
     use voxcast::io::zarr::ZarrStore;
-    use voxcast::volume::ChunkedSource;
     let vol = voxcast::builtin::open("demo").unwrap();
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("demo.zarr");
@@ -579,21 +584,9 @@ fn the_out_of_core_render_of_a_store_is_the_in_core_picture() {
         level: Some(0),
         ..Default::default()
     };
-    let run = |src: &dyn ChunkedSource| {
-        render_chunked(
-            src,
-            &tf,
-            window,
-            &cam,
-            &rp,
-            &ooc,
-            &|_, _| {},
-            &std::sync::atomic::AtomicBool::new(false),
-        )
-        .unwrap()
-    };
-    let (a, _, sa) = run(&store);
-    let (b, _, sb) = run(&mem);
+    let run = |src: &dyn ChunkedSource| out_of_core_in(src, window, &tf, &cam, &rp, &ooc);
+    let (a, sa) = run(&store);
+    let (b, sb) = run(&mem);
     assert_eq!(a.pixels, b.pixels);
     // The store's ranges skip the empty chunks without reading them.
     assert!(sa.empty > 0 && sa.bytes_read > 0, "{sa:?}");

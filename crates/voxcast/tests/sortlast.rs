@@ -1,6 +1,9 @@
 //! Sort-last rendering (`render::sortlast`): the decomposition, the
 //! compositing rounds, and over threads the one-process picture.
 
+mod common;
+use common::max_diff;
+
 use glam::Vec3;
 use std::sync::atomic::AtomicBool;
 use voxcast::camera::{CameraParams, Projection};
@@ -224,12 +227,7 @@ fn sort_last_over_threads_gives_the_one_process_picture() {
                 .unwrap()
             });
             let img = out[0].image.as_ref().expect("process 0 has the image");
-            let worst = img
-                .pixels
-                .iter()
-                .zip(&one.pixels)
-                .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
-                .fold(0f32, f32::max);
+            let worst = max_diff(img, &one);
             let db = psnr(img, &one).unwrap();
             assert!(
                 worst < 2e-4 && db >= 60.0,

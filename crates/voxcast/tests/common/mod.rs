@@ -4,6 +4,7 @@ use voxcast::render::Simd;
 use voxcast::Image;
 
 /// A progress callback that ignores progress.
+#[allow(dead_code)] // used by some of the test crates that include this file
 pub fn no_progress(_: usize, _: usize) {}
 
 /// The largest difference of any channel of any pixel.
