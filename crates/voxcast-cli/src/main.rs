@@ -14,6 +14,8 @@ fn main() {
     one_arena_for_stores(&cli.command);
     // One command per process: no output may replace a file it read.
     voxcast::files::record_inputs();
+    // WRF, MINC-2 and JPEG-LS, where this build has them (features).
+    voxcast_native_io::install();
     // Started by mpirun: `render` is split over the processes.
     #[cfg(feature = "mpi")]
     let universe = cmd::mpi::start();

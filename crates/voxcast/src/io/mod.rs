@@ -7,6 +7,7 @@
 
 mod decode;
 pub mod dicom;
+pub mod external;
 pub mod fds;
 pub mod image_stack;
 pub mod metaimage;
@@ -99,7 +100,7 @@ pub enum Format {
     Nifti,
     /// FreeSurfer MGH/MGZ.
     Mgh,
-    /// MINC-2 (HDF5; needs the `minc` feature).
+    /// MINC-2 (HDF5; needs the reader of voxcast-native-io, feature `minc`).
     Minc,
     Dicom,
     ImageStack,
@@ -110,7 +111,8 @@ pub enum Format {
     Series,
     /// Mitsuba's binary grid (`.vol`, "VOL" version 3).
     MitsubaVol,
-    /// WRF output (NetCDF-4 / NetCDF classic; needs the `wrf` feature).
+    /// WRF output (NetCDF-4 / NetCDF classic; needs the reader of
+    /// voxcast-native-io, feature `wrf`).
     Wrf,
     /// A Zarr v2/v3 store or array, OME-Zarr multiscales.
     Zarr,
@@ -297,7 +299,6 @@ mod detect_tests {
         assert_eq!(detect(&p, &opts).unwrap(), Format::Nifti);
     }
 
-    #[cfg(not(feature = "minc"))]
     #[test]
     fn minc_without_the_feature_names_it_and_a_converter() {
         let dir = tempfile::tempdir().unwrap();

@@ -5,11 +5,11 @@
 //! Transfer syntaxes: Implicit/Explicit VR Little Endian, Explicit VR Big
 //! Endian, Deflated Explicit VR, JPEG Baseline/Extended/Lossless (SV1 and
 //! non-SV1), JPEG 2000 (lossless and lossy), RLE Lossless (dicom-pixeldata,
-//! pure Rust), JPEG-LS with the `jpeg-ls` feature (CharLS). One sample per
-//! pixel (MONOCHROME1/2, values read as stored), BitsAllocated 1, 8, 16 or
-//! 32, unsigned or signed, BitsStored < BitsAllocated (masked or sign
-//! extended); pixel data longer than the image (padding) is read and the
-//! rest ignored. RescaleSlope/RescaleIntercept (or RT Dose's
+//! pure Rust), JPEG-LS with voxcast-native-io's `jpeg-ls` (CharLS, through
+//! `io::external`). One sample per pixel (MONOCHROME1/2, values read as
+//! stored), BitsAllocated 1, 8, 16 or 32, unsigned or signed, BitsStored <
+//! BitsAllocated (masked or sign extended); pixel data longer than the
+//! image (padding) is read and the rest ignored. RescaleSlope/RescaleIntercept (or RT Dose's
 //! DoseGridScaling) are applied (CT gives HU, RT Dose Gy);
 //! SeriesDescription becomes the volume's name.
 //!

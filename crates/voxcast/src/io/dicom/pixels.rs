@@ -2,7 +2,8 @@
 //!
 //! Native pixel data (and deflated data sets, inflated by the parser) is
 //! read as stored; encapsulated pixel data (JPEG, JPEG-LS, JPEG 2000, RLE)
-//! is decoded frame by frame by dicom-pixeldata.
+//! is decoded frame by frame by dicom-pixeldata, JPEG-LS by the decoder
+//! `voxcast-native-io` installs (`io::external`).
 
 use super::header::{open_checked, FileHeader};
 use super::series::{is_native, Group};
@@ -281,8 +282,19 @@ fn decode_encapsulated<T>(
     let field = PIXEL_DATA_FIELD;
     let per_frame = h.rows as usize * h.columns as usize;
     let bytes_per = (h.bits_allocated as usize).div_ceil(8);
+    // JPEG-LS through the installed decoder (`io::external`), every other
+    // codec through dicom-pixeldata.
+    let jpeg_ls = match super::series::is_jpeg_ls(&h.transfer_syntax) {
+        true => crate::io::external::installed().jpeg_ls,
+        false => None,
+    };
     for (frame, out) in targets {
-        let d = obj.decode_pixel_data_frame(frame).map_err(|e| {
+        let (decoded, frame_of_codec);
+        let data: &[u8] = if let Some(decode) = jpeg_ls {
+            decoded = decode_with(h, obj, frame, decode)?;
+            &decoded
+        } else {
+            frame_of_codec = obj.decode_pixel_data_frame(frame).map_err(|e| {
             let msg = super::header::error_chain(&e);
             if msg.contains("SamplePrecision(12)") {
                 return Error::unsupported(
@@ -302,8 +314,9 @@ fn decode_encapsulated<T>(
                     msg
                 ),
             )
-        })?;
-        let data = d.data();
+            })?;
+            frame_of_codec.data()
+        };
         if data.len() < per_frame * bytes_per {
             return Err(Error::format(
                 &h.path,
@@ -338,4 +351,35 @@ fn decode_encapsulated<T>(
         }
     }
     Ok(())
+}
+
+/// One frame decoded by an installed decoder (`io::external::FrameDecoder`):
+/// the frame's fragments joined (through the basic offset table when a
+/// frame spans several), then the codec.
+fn decode_with(
+    h: &FileHeader,
+    obj: &super::header::Obj,
+    frame: u32,
+    decode: crate::io::external::FrameDecoder,
+) -> Result<Vec<u8>> {
+    use dicom_encoding::adapters::PixelDataObject;
+    let fail = |msg: String| {
+        Error::format(
+            &h.path,
+            PIXEL_DATA_FIELD,
+            format!(
+                "cannot decode frame {frame} ({}): {msg}",
+                super::transfer_syntax_name(&h.transfer_syntax)
+            ),
+        )
+    };
+    let bytes = obj
+        .frame_pixel_data(frame)
+        .ok_or_else(|| fail("its fragments are missing".into()))?;
+    let shape = crate::io::external::FrameShape {
+        rows: h.rows,
+        columns: h.columns,
+        bits_allocated: h.bits_allocated,
+    };
+    decode(&bytes, shape).map_err(fail)
 }

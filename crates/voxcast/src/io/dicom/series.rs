@@ -29,8 +29,13 @@ pub(crate) fn can_decode(ts: &str) -> bool {
             | "1.2.840.10008.1.2.4.90"
             | "1.2.840.10008.1.2.4.91"
             | "1.2.840.10008.1.2.5"
-    ) || (cfg!(feature = "jpeg-ls")
-        && matches!(ts, "1.2.840.10008.1.2.4.80" | "1.2.840.10008.1.2.4.81"))
+    ) || (is_jpeg_ls(ts) && crate::io::external::installed().jpeg_ls.is_some())
+}
+
+/// JPEG-LS, lossless or near-lossless: decoded by the reader that
+/// `voxcast-native-io` installs (feature `jpeg-ls`, CharLS).
+pub(crate) fn is_jpeg_ls(ts: &str) -> bool {
+    matches!(ts, "1.2.840.10008.1.2.4.80" | "1.2.840.10008.1.2.4.81")
 }
 
 /// True for pixel data stored as is (after the parser's inflating).

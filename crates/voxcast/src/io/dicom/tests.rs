@@ -157,7 +157,6 @@ fn implicit_little_and_explicit_big_endian_read_the_same_values() {
 }
 
 #[test]
-#[cfg(not(feature = "jpeg-ls"))]
 fn jpeg_ls_without_the_feature_is_unsupported_naming_uid_and_remedy() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("mr_jls80.dcm");

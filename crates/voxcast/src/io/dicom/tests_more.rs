@@ -240,7 +240,7 @@ fn lossless_transfer_syntaxes_decode_to_the_uncompressed_voxels() {
         ("ct_j2k90.dcm", &ct),
         ("ct_rle.dcm", &ct),
     ];
-    // JPEG-LS (feature jpeg-ls): tests/optional.rs.
+    // JPEG-LS (feature jpeg-ls): voxcast-native-io/tests/readers.rs.
     for (name, reference) in cases {
         let v = read_alone(name);
         assert_eq!(v.dims(), reference.dims(), "{name}");
@@ -290,7 +290,7 @@ fn lossy_transfer_syntaxes_decode_within_the_codec_error() {
     // decoding of it: the same up to IDCT rounding.
     let dcmtk = read_alone("mr8_jpeg51_dcmdjpeg.dcm");
     cases.push(("mr8_jpeg51.dcm", &dcmtk, 1.0, 0.5));
-    // JPEG-LS near-lossless (feature jpeg-ls): tests/optional.rs.
+    // JPEG-LS near-lossless (feature jpeg-ls): voxcast-native-io/tests/readers.rs.
     for (name, reference, max_tol, rms_tol) in cases {
         let v = read_alone(name);
         assert_eq!(v.dims(), reference.dims(), "{name}");
