@@ -253,6 +253,78 @@ fn rays_that_miss_the_volume_still_see_geometry_and_its_smoke_shadow() {
     assert!(darkest < 0.5, "the shadow is real: T down to {darkest}");
 }
 
+/// Shadow rays skip what empty-space skipping skips: smoke in one corner
+/// of a larger, otherwise empty volume over a floor. With skipping the
+/// shadow rays leave out the samples outside the box around the smoke's
+/// blocks (far fewer lookups), and every pixel, shadow included, is the
+/// same as without skipping.
+#[test]
+fn shadow_rays_skip_the_empty_space_and_keep_the_pixels() {
+    let n = 32;
+    let mut v = vec![0f32; n * n * n];
+    for z in 0..8 {
+        for y in 0..8 {
+            for x in 0..8 {
+                v[x + n * (y + n * z)] = 0.7;
+            }
+        }
+    }
+    let vol = Volume::new([n; 3], Vec3::ONE, Vec3::ZERO, VoxelData::F32(v.into())).unwrap();
+    let tf = TransferFunction {
+        color: vec![[0.0, 0.5, 0.5, 0.5]],
+        opacity: vec![[0.0, 0.0], [0.1, 0.0], [1.0, 0.4]],
+        window: Some([0.0, 1.0]),
+    };
+    // A floor under the volume, lit from above and to the side, so that
+    // most shadow rays cross only empty blocks and some cross the smoke.
+    let floor = PlaneDef {
+        point: [15.5, 15.5, -2.0],
+        normal: [0.0, 0.0, 1.0],
+        color: [0.8, 0.8, 0.8],
+        half_extent: Some([30.0, 30.0]),
+        name: None,
+    };
+    let def = GeometryDef {
+        boxes: vec![],
+        planes: vec![floor],
+        meshes: vec![],
+    };
+    let mut g = Geometry::from_def(&def, Path::new("."), Path::new("test")).unwrap();
+    g.light = Some([-0.3, -0.2, 1.0]);
+    let cam = CameraParams {
+        azimuth: 20.0,
+        elevation: 50.0,
+        ..Default::default()
+    };
+    let render = |shadows: bool, skip: bool| {
+        let mut g = g.clone();
+        g.shadows = shadows;
+        let p = RenderParams {
+            width: 48,
+            height: 48,
+            skip_empty: skip,
+            ..Default::default()
+        };
+        let (img, st) = Renderer::new(&vol, [0.0, 1.0])
+            .unwrap()
+            .with_geometry(Some(Arc::new(g)))
+            .render(&tf, &cam, &p, &no_progress)
+            .unwrap();
+        (img, st.interpolations - st.samples)
+    };
+    let (full, full_lookups) = render(true, false);
+    let (skip, skip_lookups) = render(true, true);
+    let d = max_diff(&full, &skip);
+    assert!(d <= 1e-6, "skipping moved a pixel by {d}");
+    assert!(
+        skip_lookups > 0 && skip_lookups * 4 < full_lookups,
+        "shadow lookups: {skip_lookups} with skipping, {full_lookups} without"
+    );
+    // The smoke's shadow is in the picture.
+    let (lit, _) = render(false, true);
+    assert!(max_diff(&lit, &skip) > 0.05, "no shadow");
+}
+
 /// The demo, sparse, with a box through it, a floor and a back wall, lit
 /// with smoke shadows; its transfer function and a camera that sees all.
 fn demo_with_geometry() -> (

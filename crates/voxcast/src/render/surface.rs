@@ -67,6 +67,15 @@ pub(super) fn shade<T: Voxel>(
 
 /// Transmittance of the volume from world point `p` along unit `l` to the
 /// volume's edge: midpoint sums of the extinction at the render's base step.
+///
+/// With empty-space skipping, the samples outside the occupied box (the box
+/// around the blocks the transfer function does not make transparent) are
+/// not taken, nor counted in `interpolations`: each lies in an empty block
+/// and adds exactly 0 to the sum, so the sum, and the picture, are the same
+/// bits as without skipping. In a room with little smoke most of a shadow
+/// ray is outside that box (office frame 50, `--shadows on`: −9 % time).
+/// Testing each sample's block inside the box as well saved more lookups
+/// but no time (measured; the test costs about what a lookup does).
 #[inline]
 pub(super) fn transmittance<T: Voxel>(
     ctx: &Frame<'_, T>,
@@ -76,19 +85,32 @@ pub(super) fn transmittance<T: Voxel>(
 ) -> f32 {
     let o = (p - ctx.origin_w) * ctx.inv_spacing;
     let d = l * ctx.inv_spacing;
-    let Some((t0, t1)) = super::march::intersect_box(o, Vec3::ONE / d, ctx.box_lo, ctx.box_hi)
-    else {
+    let inv_d = Vec3::ONE / d;
+    let Some((t0, t1)) = super::march::intersect_box(o, inv_d, ctx.box_lo, ctx.box_hi) else {
         return 1.0;
     };
     let n = ((t1 - t0) / ctx.step).ceil().max(1.0);
     let ds = (t1 - t0) / n;
+    // The samples `k0..k1` are those that can lie in the occupied box, with
+    // a sample of margin each side (one taken in an empty block adds 0).
+    let (k0, k1) = match ctx.occupied {
+        Some((lo, hi)) => {
+            let Some((ta, tb)) = super::march::intersect_box(o, inv_d, lo, hi) else {
+                return 1.0;
+            };
+            let k0 = ((ta - t0) / ds - 1.5).floor().max(0.0);
+            let k1 = ((tb - t0) / ds + 1.0).ceil().min(n);
+            (k0 as u32, k1 as u32)
+        }
+        None => (0, n as u32),
+    };
     let mut tau = 0.0f32;
-    for k in 0..n as u32 {
+    for k in k0..k1 {
         let v = ctx.grid.sample(o + d * (t0 + (k as f32 + 0.5) * ds));
         if let Some(i) = Lut::index(v) {
             tau += ctx.lut.sigma(i);
         }
     }
-    *interpolations += n as u64;
+    *interpolations += k1.saturating_sub(k0) as u64;
     (-tau * ds / ctx.unit).exp()
 }
