@@ -205,6 +205,8 @@ fn global_f32(f: &netcdf::File, name: &str) -> Option<f32> {
     }
 }
 
+/// Reads the variable `opts.variable` (default QCLOUD; `A+B` sums) at time
+/// index `opts.time` (default 0), resampled to a regular height grid.
 pub fn read(path: &Path, opts: &OpenOptions) -> Result<Volume> {
     let f = open(path)?;
     let t = time_index(path, &f, opts)?;
@@ -277,6 +279,7 @@ pub fn read(path: &Path, opts: &OpenOptions) -> Result<Volume> {
     Ok(vol)
 }
 
+/// Lines describing the file for `voxcast info`: variables and times.
 pub fn summary(path: &Path) -> Result<Vec<String>> {
     let f = open(path)?;
     let mut lines = vec![format!(
