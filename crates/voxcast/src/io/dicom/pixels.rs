@@ -284,9 +284,10 @@ fn decode_encapsulated<T>(
     let bytes_per = (h.bits_allocated as usize).div_ceil(8);
     // JPEG-LS through the installed decoder (`io::external`), every other
     // codec through dicom-pixeldata.
-    let jpeg_ls = match super::series::is_jpeg_ls(&h.transfer_syntax) {
-        true => crate::io::external::installed().jpeg_ls,
-        false => None,
+    let jpeg_ls = if super::series::is_jpeg_ls(&h.transfer_syntax) {
+        crate::io::external::installed().jpeg_ls
+    } else {
+        None
     };
     for (frame, out) in targets {
         let (decoded, frame_of_codec);
