@@ -50,8 +50,15 @@ fn run_with_limit(mut cmd: Command, limit: Duration) -> Output {
     }
 }
 
-/// `xvfb-run -a voxcast view ARGS` in `dir`, on Vulkan only.
+/// `xvfb-run -a voxcast view ARGS` in `dir`, on Vulkan only. One at a
+/// time: `xvfb-run -a` picks the first free display number, and two started
+/// together can pick the same one, so that one viewer finds no X server
+/// (seen once in a local CI run).
 fn view(args: &[&str], dir: &Path) -> Output {
+    static ONE_DISPLAY_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _turn = ONE_DISPLAY_AT_A_TIME
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     let runtime = dir.join("xdg");
     std::fs::create_dir_all(&runtime).unwrap();
     #[cfg(unix)]
