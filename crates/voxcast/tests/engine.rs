@@ -41,6 +41,10 @@ fn draw(r: &Renderer<'_>, tf: &TransferFunction, p: &RenderParams) -> Image {
     r.render(tf, &camera(), p, &no_progress).unwrap().0
 }
 
+/// In the scalar loop, which composites back to front by S4's
+/// recurrence over the buffered samples (the packets sum front to back
+/// with termination off; `back_to_front_packets_give_the_scalar_pixels`
+/// holds them to this loop).
 #[test]
 fn every_method_composites_the_same_in_both_orders() {
     let (vol, tf) = scene();
@@ -60,6 +64,7 @@ fn every_method_composites_the_same_in_both_orders() {
                     ert: 1.0,
                     background: [0.1, 0.2, 0.3],
                     seed: 7,
+                    simd: Simd::Scalar,
                     ..Default::default()
                 };
                 if method == Method::Lod {
@@ -174,6 +179,7 @@ fn typed_volumes() -> Vec<voxcast::Volume> {
 /// every stored type, both fixed-step methods, `importance`, `threshold`
 /// and `threshold+grouped` (the same interpolations, and some reused),
 /// `stratified` (a random position per interval, a key per ray and pass),
+/// `mc` (sorted uniforms over the whole ray from the pixel's stream),
 /// skipping on and off, early termination on and off, flat and Phong,
 /// every optical model, several passes of jitter.
 /// On a CPU without AVX2 there is no level and the test checks nothing (the
@@ -197,6 +203,7 @@ fn packets_give_the_scalar_pixels() {
             (Method::Threshold, false),
             (Method::Threshold, true),
             (Method::Stratified, false),
+            (Method::Mc, false),
         ] {
             for skip_empty in [true, false] {
                 for (ert, shading) in [(0.9, false), (1.0, false), (0.9, true), (1.0, true)] {
@@ -276,6 +283,82 @@ fn packets_give_the_scalar_pixels() {
     }
 }
 
+/// Back to front in the packets (summed front to back with early
+/// termination off) against the scalar loop's back-to-front recurrence,
+/// at every level this CPU has: every marcher the packets run, flat and
+/// Phong, skipping on and off, a u8 and an f32 grid; no ray terminates
+/// early. `lod`'s leaves are classed with no opacity in front of them, as
+/// the scalar back-to-front pass does.
+#[test]
+fn back_to_front_packets_give_the_scalar_pixels() {
+    let tf = TransferFunction {
+        color: vec![[0.0, 1.0, 0.5, 0.2], [1.0, 0.3, 0.6, 1.0]],
+        opacity: vec![[0.0, 0.0], [0.2, 0.0], [0.5, 0.6], [1.0, 1.0]],
+        window: None,
+    };
+    let vols = typed_volumes();
+    let mut checked = 0;
+    for vol in [&vols[0], &vols[3]] {
+        let s = vol.stats();
+        let r = Renderer::new(vol, [s.min, s.max]).unwrap();
+        for (method, grouped) in [
+            (Method::Uniform, false),
+            (Method::Jitter, false),
+            (Method::Uniform, true),
+            (Method::Adaptive, false),
+            (Method::Adaptive, true),
+            (Method::AdaptiveMax, false),
+            (Method::Importance, false),
+            (Method::Threshold, false),
+            (Method::Threshold, true),
+            (Method::Stratified, false),
+            (Method::Mc, false),
+            (Method::Lod, false),
+        ] {
+            for (skip_empty, shading) in [(true, false), (false, false), (true, true)] {
+                let mut p = RenderParams {
+                    width: 45,
+                    height: 21,
+                    method,
+                    grouped,
+                    shading,
+                    skip_empty,
+                    order: Order::BackToFront,
+                    // Ignored back to front.
+                    ert: 0.5,
+                    spp: 2,
+                    seed: 5,
+                    step: 0.37,
+                    background: [0.2, 0.1, 0.3],
+                    simd: Simd::Scalar,
+                    ..Default::default()
+                };
+                let (scalar, sc) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
+                for (level, name) in simd_levels() {
+                    p.simd = level;
+                    let (simd, ss) = r.render(&tf, &camera(), &p, &no_progress).unwrap();
+                    let what = format!(
+                        "{name}: {}{} {:?} skip {skip_empty} shading {shading}",
+                        method.name(),
+                        if grouped { "+grouped" } else { "" },
+                        vol.scalar_type()
+                    );
+                    let d = max_diff(&simd, &scalar);
+                    assert!(d < 1e-4, "{what}: packets differ from scalar by {d}");
+                    let (a, b) = (ss.samples as f64, sc.samples as f64);
+                    assert!(b > 0.0, "{what}: nothing sampled");
+                    assert!((a - b).abs() <= 1e-3 * b, "{what}: samples {a} vs {b}");
+                    assert_eq!(ss.early_terminated, 0, "{what}");
+                    assert_eq!(sc.early_terminated, 0, "{what}");
+                    assert_eq!(ss.simd.map(|l| l.name()), Some(name), "{what}");
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 0 || simd_levels().is_empty(), "nothing compared");
+}
+
 /// Skipping by distance: a lane in an empty block jumps over the whole
 /// empty cube around it (`packet::skip_distances`), not one block at a
 /// time. Two small blobs in opposite corners of a larger volume leave
@@ -287,9 +370,10 @@ fn packets_give_the_scalar_pixels() {
 /// give the scalar walk's samples; `lod`'s leaf walks, which jump the
 /// same cubes where nothing is pending, give the scalar octree walk's
 /// pixels and samples; `threshold`'s lanes, which jump them and start
-/// again on the base grid, sample where the scalar march restarts; and
+/// again on the base grid, sample where the scalar march restarts;
 /// `stratified`'s, which go on at the first interval past the cube,
-/// take the scalar march's random positions.
+/// take the scalar march's random positions; and `mc`'s, which cannot
+/// jump, drop the same positions in the empty blocks.
 #[test]
 fn packets_jump_the_empty_space_and_keep_the_samples() {
     use voxcast::volume::VoxelData;
@@ -346,6 +430,10 @@ fn packets_jump_the_empty_space_and_keep_the_samples() {
             // `stratified` jumps to the first interval past the cube.
             (Method::Stratified, false, false),
             (Method::Stratified, true, false),
+            // `mc` drops its positions in empty blocks, by the scalar
+            // march's rule.
+            (Method::Mc, false, false),
+            (Method::Mc, true, false),
             // The step-per-block walks jump the empty cubes too.
             (Method::Adaptive, false, false),
             (Method::Adaptive, true, true),

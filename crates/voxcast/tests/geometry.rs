@@ -12,7 +12,7 @@ use std::path::Path;
 use std::sync::Arc;
 use voxcast::camera::{Camera, CameraParams, Projection};
 use voxcast::geometry::{BoxDef, Geometry, GeometryDef, PlaneDef, SurfaceLight};
-use voxcast::render::{MethodSpec, OpticalModel, Order, RenderParams, Renderer};
+use voxcast::render::{MethodSpec, OpticalModel, Order, RenderParams, Renderer, Simd};
 use voxcast::scene::Scene;
 use voxcast::transfer::{srgb_to_linear, TransferFunction};
 use voxcast::{Image, Volume, VoxelData};
@@ -399,10 +399,14 @@ fn empty_space_skipping_and_order_do_not_change_pixels_with_geometry() {
                 d <= 1e-6,
                 "{spec} jitter {jitter}: skipping moved a pixel by {d}"
             );
+            // S4's back-to-front recurrence (the scalar loop's) against
+            // the packets' front to back.
             p.order = Order::BackToFront;
             p.ert = 1.0;
+            p.simd = Simd::Scalar;
             let btf = draw(&vol, &tf, &cam, &p, g.clone());
             p.order = Order::FrontToBack;
+            p.simd = Simd::Auto;
             let ftb = draw(&vol, &tf, &cam, &p, g.clone());
             let d = max_diff(&ftb, &btf);
             assert!(

@@ -183,9 +183,10 @@ pub struct SceneArgs {
     pub optical: Option<OpticalArg>,
     /// CPU inner loop: `auto` marches sixteen rays per SIMD packet (one
     /// AVX-512 register, or two of AVX2) where the CPU has AVX2, for
-    /// front-to-back renders of uniform, jitter, importance, stratified, the
-    /// adaptive methods, uniform and threshold (grouped or not) and lod (mc
-    /// and back to front run the scalar loop); `avx2` keeps the
+    /// uniform, jitter, importance, stratified, mc, the adaptive methods,
+    /// uniform and threshold (grouped or not) and lod, in both orders (back
+    /// to front summed front to back without early termination); `avx2`
+    /// keeps the
     /// packets to AVX2, fetching with its gather instructions; `avx2-loads`
     /// to AVX2 fetching with scalar loads (what `auto` picks on AMD CPUs
     /// without AVX-512, whose gathers are slower); `avx512` and

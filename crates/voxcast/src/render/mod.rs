@@ -516,6 +516,7 @@ impl Job<'_> {
                 // In SIMD packets where the CPU and the render allow.
                 let strat = packet::Strat {
                     sigma: self.lut.sigmas(),
+                    mc: false,
                 };
                 if let Some(out) = self.packets::<T, ()>(f, &t, None, None, None, Some(strat)) {
                     return out;
@@ -526,7 +527,17 @@ impl Job<'_> {
                 };
                 self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
             }
-            Method::Mc => self.tiles::<T, C, _, _>(f, &stochastic::UniformMc, Trilinear(sh)),
+            Method::Mc => {
+                // In SIMD packets where the CPU and the render allow.
+                let strat = packet::Strat {
+                    sigma: self.lut.sigmas(),
+                    mc: true,
+                };
+                if let Some(out) = self.packets::<T, ()>(f, &t, None, None, None, Some(strat)) {
+                    return out;
+                }
+                self.tiles::<T, C, _, _>(f, &stochastic::UniformMc, Trilinear(sh))
+            }
             Method::Importance => {
                 // The spacing and step opacities of its pdf's levels.
                 let (steps, alphas): (Vec<f32>, Vec<_>) = (0..=stochastic::MAX_LEVEL)
@@ -700,6 +711,7 @@ impl Job<'_> {
                 threshold: m.threshold,
                 steps: m.steps,
                 skip_empty: f.skip_empty,
+                front: self.params.order == Order::FrontToBack,
             }),
         };
         self.packets(f, &t, None, Some(&runs), None, None)
@@ -722,9 +734,15 @@ impl Job<'_> {
         // The shading `shaded` picks.
         let shading = p.shading.then(BlinnPhong::default);
         let level = packet::level(p.simd)?;
+        // Back to front is summed front to back with early termination
+        // off: the same samples and, the over operator being associative,
+        // the same sum to a float rounding (as on the GPU); the scalar loop
+        // keeps S4's recurrence over the buffered samples. (`lod` then
+        // classes its leaves with no opacity in front, as that loop does:
+        // `VLodParams::front`.)
+        let back = p.order == Order::BackToFront;
         if (p.grouped && runs.is_none() && thr.is_none())
             || shading.is_some_and(|bp| !packet::shades(&bp))
-            || p.order != Order::FrontToBack
             || !packet::fits(f.grid)
         {
             return None;
@@ -741,7 +759,7 @@ impl Job<'_> {
             q: &t.level_tables[0],
             st: t.level_steps[0],
             weights: Weights::of(p.optical),
-            stop: composite::ert_stop(p.ert),
+            stop: composite::ert_stop(if back { 1.0 } else { p.ert }),
             jitter: self.jitter_seed(),
             empty: empty.as_ref().map(|e| e.as_slice()),
             shading,

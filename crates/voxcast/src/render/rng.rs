@@ -27,7 +27,13 @@ impl Rng {
 
     /// The stream of pixel `(x, y)` (each below 2¹⁶), pass `pass`.
     pub fn for_pixel(seed: u64, x: u32, y: u32, pass: u32) -> Rng {
-        Rng::new(seed, x as u64 | (y as u64) << 16 | (pass as u64) << 32)
+        Rng::new(seed, Rng::pixel_stream(x, y, pass))
+    }
+
+    /// The stream [`Rng::for_pixel`] takes for pixel `(x, y)`, pass `pass`.
+    #[inline(always)]
+    pub fn pixel_stream(x: u32, y: u32, pass: u32) -> u64 {
+        x as u64 | (y as u64) << 16 | (pass as u64) << 32
     }
 
     #[inline(always)]

@@ -30,6 +30,11 @@ pub(in crate::render) struct VLodParams<'a> {
     pub steps: [f32; 3],
     /// Skipping the transparent leaves (their samples are not taken).
     pub skip_empty: bool,
+    /// Front to back: a leaf is classed by the opacity gathered in front
+    /// of it. Back to front has none (`Back::opacity` is 0), and classes
+    /// a leaf by its amount alone, as the scalar loop's back-to-front pass
+    /// does.
+    pub front: bool,
 }
 
 /// The `lod` lanes' leaf walks: their blocks ([`VBlocks`]); where their
@@ -72,7 +77,7 @@ impl<'a, S: Simd> VLod<'a, S> {
 
     /// The lanes of `need`, past their run, walk on leaf by leaf (`LodRay::
     /// march` operation for operation): each leaf's class from its amount
-    /// and the lane's opacity `col[3]`, its first and end sample on the
+    /// and the lane's opacity `col[3]` (0 back to front), its first and end sample on the
     /// class's grid; where it has a sample, the pending sample is
     /// composited over its stretch up to it, and the leaf becomes the
     /// lane's run unless skipped. `rr` and `kv` then hold the runs.
@@ -118,7 +123,7 @@ impl<'a, S: Simd> VLod<'a, S> {
             let e = S::lt(am, zero);
             // The class: high, low or sparse by the contribution
             // `(1 − A)·amount` (sparse where transparent).
-            let wgt = (one - col[3]) * am;
+            let wgt = (one - if self.p.front { col[3] } else { zero }) * am;
             let cls = S::blend(S::ge(wgt, quarter), S::splat(2.0), one);
             let cls = S::blend(S::ge(wgt, th), cls, zero);
             let cls = S::blend(e, cls, S::splat(2.0));

@@ -5,8 +5,11 @@
 //! `importance`, whose march is a fixed step per block (the lanes walk
 //! their blocks in vector registers, once per block, for the block's pdf
 //! level; the loop samples with each lane's spacing and reads its level's
-//! table), and for the step-per-block marches (`adaptive` and its
-//! rules, S0's grouped reuse; [`runs`]).
+//! table), for the step-per-block marches (`adaptive` and its
+//! rules, S0's grouped reuse; [`runs`]), `lod`, `threshold`, and
+//! `stratified` and `mc`, whose lanes draw their own random positions.
+//! Back to front is summed front to back with early termination off (the
+//! same sum; `Job::packets`).
 //!
 //! Each lane keeps its own ray: its sample grid `t₀ + k·s`, its first and
 //! last sample, and its accumulated colour and opacity; a lane mask drops
@@ -72,6 +75,7 @@ macro_rules! entry {
 mod distance;
 mod importance;
 mod lod;
+mod mc;
 mod runs;
 mod shade;
 mod stratified;
@@ -214,7 +218,7 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub runs: Option<&'a R>,
     /// `threshold`'s ranges, steps and tables, when the packets march it.
     pub thr: Option<Thr<'a>>,
-    /// `stratified`'s extinctions, when the packets march it.
+    /// `stratified`'s or `mc`'s extinctions, when the packets march it.
     pub strat: Option<Strat<'a>>,
     /// Opaque geometry the rays stop at (S0 Fig. 9–13): a lane's ray ends
     /// at its first hit, and the surface's lit colour is composited
@@ -246,7 +250,8 @@ struct State<'s> {
     /// `threshold`'s lanes: the end of the walk, and the exit;
     /// `stratified`'s: the walk's start and end.
     ends: &'s [[f32; 2]],
-    /// `stratified`'s lanes: their rays' random keys.
+    /// `stratified`'s lanes: their rays' random keys; `mc`'s: their
+    /// pixels' random streams.
     keys: &'s [u64],
 }
 
@@ -533,6 +538,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                         ends[i] = e;
                         l
                     })
+                } else if self.strat.as_ref().is_some_and(|s| s.mc) {
+                    self.mc_lane(r, limit, pixel, pass, stats).map(|(l, key)| {
+                        keys[i] = key;
+                        l
+                    })
                 } else if self.strat.is_some() {
                     self.strat_lane(r, limit, pixel, pass, stats)
                         .map(|(l, e, key)| {
@@ -756,8 +766,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             };
         }
         if !R::ON && self.strat.is_some() {
-            // `stratified`: its own loop, which reads skipping and shading
-            // as flags.
+            // `stratified` and `mc`: their own loop, which reads skipping,
+            // shading and which of the two as flags.
             return match self.level {
                 Level::Avx2 => stratified::strat_avx2::<T, R>(self, lanes, st),
                 Level::Avx2Loads => stratified::strat_avx2_loads::<T, R>(self, lanes, st),

@@ -6,6 +6,10 @@
 //! samples dropped where their position lies in an empty block or outside
 //! the walk. An empty block's lanes jump its empty cube: to the first
 //! interval whose position may lie past it.
+//!
+//! The same loop samples `mc`'s positions ([`super::mc`]): a flag picks
+//! where the positions come from, so both share one copy of the sampling,
+//! shading and compositing per stored type and level.
 
 #[cfg(target_arch = "x86_64")]
 pub(super) use vector::{strat_avx2, strat_avx2_loads, strat_avx512, strat_avx512_loads};
@@ -17,10 +21,15 @@ use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::Vec3;
 
-/// `stratified` in packets: the extinction of every table entry, for the
-/// last interval's opacity (the others take the step's table, `pk.q`).
+/// `stratified` or `mc` (S1's uniform marchers) in packets: the
+/// extinction of every table entry, for the opacity of a stretch that is
+/// not the step (`stratified`'s last interval, each of `mc`'s samples;
+/// the others take the step's table, `pk.q`).
 pub(in crate::render) struct Strat<'a> {
     pub sigma: &'a [f32; LUT_SIZE],
+    /// `mc`'s positions (sorted uniforms over the whole ray, [`super::mc`])
+    /// rather than one per interval.
+    pub mc: bool,
 }
 
 impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
@@ -61,13 +70,12 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 #[cfg(target_arch = "x86_64")]
 mod vector {
     use super::super::super::stochastic::interval_random;
-    use super::super::shade::{Deferred, Light};
+    use super::super::mc::Draws;
     use super::super::simd::{Simd, W16, W8};
-    use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
-    use super::super::vector::{shade_deferred, Skips, Vol};
+    use super::super::tail::Taker;
+    use super::super::vector::Skips;
     use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
-    use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
 
     entry!(
@@ -113,8 +121,9 @@ mod vector {
         march<>
     );
 
-    /// The loop of both widths: lane by lane `Stratified::march` with
-    /// front-to-back compositing, from the colour and opacity in `st.acc`.
+    /// The loop of both widths: lane by lane `Stratified::march` (or
+    /// `UniformMc::march`) with front-to-back compositing, from the colour
+    /// and opacity in `st.acc`.
     ///
     /// # Safety
     /// As [`strat_avx2`], with the width's instructions.
@@ -127,16 +136,25 @@ mod vector {
         debug_assert!(lanes.len() == S::N && st.acc.len() == S::N);
         let f = pk.f;
         let strat = pk.strat.as_ref().unwrap_unchecked();
-        let vol = Vol::<S>::of(pk);
         let s = f.step;
-        // Skipping and shading are flags read each step, not const
+        // Skipping, shading and `mc` are flags read each step, not const
         // parameters: one loop per type and level (16) where the const
         // choices made 64, which cost six minutes of CI's dev build; a
         // predictable branch a step costs no measurable time.
-        let (skipping, shading) = (pk.empty.is_some(), pk.shading.is_some());
+        let skipping = pk.empty.is_some();
+        // `mc`: the lanes' generators, and the stretch a position stands
+        // for.
+        let (mut draws, mc_w) = match strat.mc {
+            true => {
+                let (d, w) = Draws::new(lanes, S::N, st.keys, f.seed, s);
+                (Some(d), w)
+            }
+            false => (None, [0.0; LANES]),
+        };
         // Per lane: origin, direction, entry, view, first interval, the
-        // walk's ends, exit, last interval, colour and opacity.
-        let mut a = [S::Af::default(); 19];
+        // walk's ends, exit, last interval, colour and opacity, `mc`'s
+        // stretch.
+        let mut a = [S::Af::default(); 20];
         let mut keys = [0u64; LANES];
         let mut live_bits = 0u32;
         for (i, l) in lanes.iter().enumerate() {
@@ -164,6 +182,7 @@ mod vector {
                 c.y,
                 c.z,
                 c.w,
+                mc_w[i],
             ];
             for (k, x) in v.into_iter().enumerate() {
                 a[k][i] = x;
@@ -182,25 +201,17 @@ mod vector {
             S::load(a[13]),
             S::load(a[14]),
         );
-        let mut col = [
+        let col = [
             S::load(a[15]),
             S::load(a[16]),
             S::load(a[17]),
             S::load(a[18]),
         ];
-        let (zero, one, half) = (S::splat(0.0), S::splat(1.0), S::splat(0.5));
-        let top = S::splat((LUT_SIZE - 1) as f32);
-        let q = pk.q.as_ptr() as *const f32;
-        let sigma = strat.sigma.as_ptr();
+        let (mc_len, mc_w) = (t_out - t_in, S::load(a[19]));
+        let one = S::splat(1.0);
         let sv = S::splat(s);
-        let (inv_s, inv_unit) = (S::splat(1.0 / s), S::splat(1.0 / f.unit));
-        let (we, wa) = (
-            S::splat(pk.weights.emission),
-            S::splat(pk.weights.absorption),
-        );
-        let stop = S::splat(pk.stop);
-        let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
-        let mut dq = Deferred::new();
+        let inv_s = S::splat(1.0 / s);
+        let mut tk = Taker::<S>::new(pk, strat.sigma, view, col, S::from_bits(live_bits));
         let inv_d = [one / d[0], one / d[1], one / d[2]];
         let skips = Skips::<S>::of(pk);
         let rays = Rays {
@@ -209,13 +220,31 @@ mod vector {
             inv_d,
             t0: t_in,
         };
-        let mut live = S::from_bits(live_bits);
-        let (mut cnt, mut cnt_shaded) = (S::splat_i(0), S::splat_i(0));
         loop {
+            if let Some(dr) = draws.as_mut() {
+                // `mc`: the lanes still going draw their next position;
+                // every sample stands for the stretch `L/n`; one in an
+                // empty block is dropped (not counted).
+                let mut u = S::Af::default();
+                let bits = dr.next(S::bits(tk.live), &mut u, S::N);
+                if bits == 0 {
+                    break;
+                }
+                let mut samp = S::from_bits(bits);
+                let t = t_in + S::load(u) * mc_len;
+                let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+                if skipping {
+                    samp = S::but(samp, skips.empty_at(p, samp));
+                }
+                if S::bits(samp) != 0 {
+                    tk.take::<T>(samp, p, samp, mc_w);
+                }
+                continue;
+            }
             // Interval k starts at `a`; the walk ends every lane whose
             // interval starts at or past its end.
             let a0 = t_in + kv * sv;
-            let act = S::and(live, S::and(S::ge(lastk, kv), S::lt(a0, w1)));
+            let act = S::and(tk.live, S::and(S::ge(lastk, kv), S::lt(a0, w1)));
             let bits = S::bits(act);
             if bits == 0 {
                 break;
@@ -236,7 +265,7 @@ mod vector {
             let mut samp = S::and(act, S::and(S::ge(t, w0), S::lt(t, w1)));
             let mut jumped = S::from_bits(0);
             if skipping && S::bits(samp) != 0 {
-                let (skip, te) = skips.exit(&vol, p, &rays, samp);
+                let (skip, te) = skips.exit(&tk.vol, p, &rays, samp);
                 if S::bits(skip) != 0 {
                     // Past the empty cube: the first interval whose
                     // position may lie beyond it (its position, if still
@@ -247,37 +276,13 @@ mod vector {
                     jumped = skip;
                 }
             }
+            // The last interval stands for its own length.
             if S::bits(samp) != 0 {
-                cnt = S::count(cnt, samp);
-                let v = vol.sample::<T>(p);
-                // `Lut::index`: below 0 (or NaN) nothing.
-                let mut valid = S::and(samp, S::ge(v, zero));
-                let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
-                let mut qv = S::rows(q, S::sll(idx, 2));
-                // The last interval stands for its own length.
-                over_stretch::<S>(&mut qv, S::and(valid, is_last), sigma, idx, len, inv_unit);
-                let [qr, qg, qb, al] = qv;
-                let mut e = [zero; 3];
-                valid = S::and(valid, S::gt(al, zero));
-                if shading {
-                    if S::bits(valid) != 0 {
-                        let w = we * (one - col[3]);
-                        if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
-                            shade_deferred::<S, T>(&mut dq, &vol, &light, view);
-                        }
-                        cnt_shaded = S::count(cnt_shaded, valid);
-                    }
-                } else {
-                    e = [S::keep(valid, qr), S::keep(valid, qg), S::keep(valid, qb)];
-                }
-                composite::<S>(&mut col, &mut live, valid, e, al, [we, wa], stop);
+                tk.take::<T>(samp, p, is_last, len);
             }
             // Every active lane that did not jump takes its next interval.
             kv = S::blend(S::but(act, jumped), kv, kv + one);
         }
-        if shading {
-            drain_deferred::<S, T>(&mut dq, &mut col, &vol, &light, view);
-        }
-        store_lanes::<S>(st, lanes, col, [cnt, cnt_shaded, cnt], live);
+        tk.finish::<T>(st, lanes);
     }
 }

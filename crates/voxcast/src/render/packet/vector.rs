@@ -126,6 +126,26 @@ impl<S: Simd> Skips<S> {
         }
     }
 
+    /// The lanes of `act` whose samples `p` (inside the grid's sample
+    /// box) lie in an empty block by [`Frame::in_empty_block`]'s rule:
+    /// block `⌊p/B⌋`, whichever way the ray goes (`mc`, whose positions
+    /// are not on a walk).
+    ///
+    /// # Safety
+    /// The width's instructions; `pk.empty` was set.
+    ///
+    /// [`Frame::in_empty_block`]: crate::render::ray::Frame::in_empty_block
+    #[inline(always)]
+    pub(super) unsafe fn empty_at(&self, p: [S::F; 3], act: S::M) -> S::M {
+        let zero = S::splat(0.0);
+        let b3: [S::I; 3] = std::array::from_fn(|a| {
+            let b = S::to_i(S::floor(S::max(p[a], zero) / self.bs));
+            S::min_i(b, self.top[a])
+        });
+        let b = b3[0] + S::mullo(self.ncx, b3[1] + S::mullo(self.ncy, b3[2]));
+        S::and(act, S::positive(S::gather::<4>(self.empty, b)))
+    }
+
     /// The lanes of `act` whose samples `p` lie in an empty block (the
     /// block walk's rule: on a face, a ray going down belongs to the
     /// block below), and their exits from the empty cube around it: the
