@@ -77,8 +77,8 @@ impl<'a, S: Simd> VLod<'a, S> {
 
     /// The lanes of `need`, past their run, walk on leaf by leaf (`LodRay::
     /// march` operation for operation): each leaf's class from its amount
-    /// and the lane's opacity `col[3]` (0 back to front), its first and end sample on the
-    /// class's grid; where it has a sample, the pending sample is
+    /// and the lane's opacity `col[3]` (0 back to front), its first and
+    /// end sample on the class's grid; where it has a sample, the pending sample is
     /// composited over its stretch up to it, and the leaf becomes the
     /// lane's run unless skipped. `rr` and `kv` then hold the runs.
     /// Returns the lanes whose walk ended and those that terminated.

@@ -42,17 +42,17 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 pub(super) struct Draws {
     draws: [Option<SortedUniforms>; LANES],
     /// Lanes with positions left (bits).
-    pub going: u32,
+    going: u32,
 }
 
 impl Draws {
-    /// The generators of lanes `lanes` (the first `n`), seeded with
+    /// The generators of the first `width` lanes of `lanes`, seeded with
     /// `seed` on their pixels' streams `keys`, `n = ⌈L/step⌉` positions
     /// each; and per lane the stretch `L/n` each position stands for
     /// (`UniformMc::march`, S1 eq. 6: n positions of pdf 1/L weigh L/n).
     pub fn new(
         lanes: &[Option<Lane>],
-        n: usize,
+        width: usize,
         keys: &[u64],
         seed: u64,
         step: f32,
@@ -62,7 +62,7 @@ impl Draws {
             going: 0,
         };
         let mut w = [0.0f32; LANES];
-        for (i, l) in lanes.iter().enumerate().take(n) {
+        for (i, l) in lanes.iter().enumerate().take(width) {
             let Some(l) = l else { continue };
             let len = l.t_end - l.t0;
             let count = (len / step).ceil().max(1.0) as u32;
@@ -74,18 +74,18 @@ impl Draws {
     }
 
     /// The next position (in `[0, 1)` of the ray) of each lane of `live`
-    /// that has one, into `u` (the first `n` lanes); the lanes whose
-    /// positions are all drawn drop out of `going`. Returns the lanes that
-    /// drew one.
+    /// (bits, within the first `width`) that has one, into `u`; the lanes
+    /// whose positions are all drawn, or that are not live, drop out.
+    /// Returns the lanes that drew one.
     #[inline(always)]
     pub fn next<U: IndexMut<usize, Output = f32>>(
         &mut self,
         live: u32,
         u: &mut U,
-        n: usize,
+        width: usize,
     ) -> u32 {
         self.going &= live;
-        for (i, g) in self.draws.iter_mut().enumerate().take(n) {
+        for (i, g) in self.draws.iter_mut().enumerate().take(width) {
             if self.going & (1 << i) == 0 {
                 continue;
             }

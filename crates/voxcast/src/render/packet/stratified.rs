@@ -144,12 +144,11 @@ mod vector {
         let skipping = pk.empty.is_some();
         // `mc`: the lanes' generators, and the stretch a position stands
         // for.
-        let (mut draws, mc_w) = match strat.mc {
-            true => {
-                let (d, w) = Draws::new(lanes, S::N, st.keys, f.seed, s);
-                (Some(d), w)
-            }
-            false => (None, [0.0; LANES]),
+        let (mut draws, mc_w) = if strat.mc {
+            let (d, w) = Draws::new(lanes, S::N, st.keys, f.seed, s);
+            (Some(d), w)
+        } else {
+            (None, [0.0; LANES])
         };
         // Per lane: origin, direction, entry, view, first interval, the
         // walk's ends, exit, last interval, colour and opacity, `mc`'s

@@ -135,7 +135,7 @@ pub(super) struct Taker<S: Simd> {
     weights: [S::F; 2],
     stop: S::F,
     inv_unit: S::F,
-    pub col: [S::F; 4],
+    col: [S::F; 4],
     pub live: S::M,
     dq: Deferred,
     cnt: S::I,
