@@ -1,6 +1,7 @@
 //! The bench's table says which inner loop ran: the methods the SIMD
-//! packets do not cover yet, or every method where `--simd scalar` asked
-//! for the scalar loop.
+//! packets do not cover yet (since `mc` moved into them, only the
+//! physically based integrators), or every method where `--simd scalar`
+//! asked for the scalar loop.
 
 use voxcast::render::{simd_level, Simd};
 use voxcast::scene::Scene;
@@ -14,7 +15,7 @@ fn table(simd: Simd) -> String {
     scene.render.simd = simd;
     let prepared = scene.prepare().unwrap();
     let config = BenchConfig {
-        methods: parse_methods("uniform,mc").unwrap(),
+        methods: parse_methods("uniform,single-scatter").unwrap(),
         repeat: 1,
         warmup: 0,
         cache_dir: None,
@@ -34,7 +35,7 @@ fn the_table_says_which_loop_ran() {
         );
         assert!(!forced.contains("yet"), "{forced}");
         assert!(
-            auto.contains("Scalar loop (these methods do not run in the SIMD packets yet): mc."),
+            auto.contains("Scalar loop (these methods do not run in the SIMD packets yet): single-scatter."),
             "{auto}"
         );
     } else {
