@@ -35,7 +35,9 @@ fn the_table_says_which_loop_ran() {
         );
         assert!(!forced.contains("yet"), "{forced}");
         assert!(
-            auto.contains("Scalar loop (these methods do not run in the SIMD packets yet): single-scatter."),
+            auto.contains(
+                "Scalar loop (these methods do not run in the SIMD packets yet): single-scatter."
+            ),
             "{auto}"
         );
     } else {
