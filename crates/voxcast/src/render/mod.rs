@@ -512,31 +512,25 @@ impl Job<'_> {
                 };
                 self.grouped::<T, C, Sh, _>(f, sh, &m)
             }
-            Method::Stratified => {
-                // In SIMD packets where the CPU and the render allow.
+            Method::Stratified | Method::Mc => {
+                // In SIMD packets where the CPU and the render allow (one
+                // loop for both).
+                let mc = p.method == Method::Mc;
                 let strat = packet::Strat {
                     sigma: self.lut.sigmas(),
-                    mc: false,
+                    mc,
                 };
                 if let Some(out) = self.packets::<T, ()>(f, &t, None, None, None, Some(strat)) {
                     return out;
+                }
+                if mc {
+                    return self.tiles::<T, C, _, _>(f, &stochastic::UniformMc, Trilinear(sh));
                 }
                 let full_alphas = self.lut.alphas(p.step);
                 let m = stochastic::Stratified {
                     full_alphas: &full_alphas,
                 };
                 self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
-            }
-            Method::Mc => {
-                // In SIMD packets where the CPU and the render allow.
-                let strat = packet::Strat {
-                    sigma: self.lut.sigmas(),
-                    mc: true,
-                };
-                if let Some(out) = self.packets::<T, ()>(f, &t, None, None, None, Some(strat)) {
-                    return out;
-                }
-                self.tiles::<T, C, _, _>(f, &stochastic::UniformMc, Trilinear(sh))
             }
             Method::Importance => {
                 // The spacing and step opacities of its pdf's levels.
