@@ -3,6 +3,7 @@
 //! geometry by median splits along the widest axis of the centroids;
 //! traversed front to back with a fixed-size stack (no allocation per ray).
 
+use super::packet::{meets_any, RaySoa, PACKET};
 use super::shapes::Aabb;
 use glam::Vec3;
 
@@ -135,6 +136,40 @@ impl Bvh {
             }
         }
         best
+    }
+
+    /// [`Bvh::traverse`] for a packet of rays: a node is entered where any
+    /// lane's ray meets it before the lane's `t_max`, and `leaf(primitives,
+    /// t_max)` tests a leaf's primitives against every lane, lowering
+    /// `t_max` where one is nearer. Children are taken left first (the
+    /// lanes' nearest hits do not depend on the order, only the work does).
+    #[inline]
+    pub fn traverse_packet(
+        &self,
+        r: &RaySoa,
+        t_max: &mut [f32; PACKET],
+        mut leaf: impl FnMut(&[u32], &mut [f32; PACKET]),
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; STACK];
+        let mut sp = 1usize;
+        while sp > 0 {
+            sp -= 1;
+            let node = &self.nodes[stack[sp] as usize];
+            if !meets_any(&node.bounds, r, t_max) {
+                continue;
+            }
+            if node.count > 0 {
+                let first = node.first as usize;
+                leaf(&self.order[first..first + node.count as usize], t_max);
+            } else if sp + 2 <= STACK {
+                stack[sp] = node.right;
+                stack[sp + 1] = node.first;
+                sp += 2;
+            }
+        }
     }
 }
 

@@ -34,6 +34,24 @@ pub(super) fn first_hit<T: Voxel>(
     Some((hit.t, shade(ctx, s, origin, dir, &hit, interpolations)))
 }
 
+/// [`first_hit`] for each of `rays` (at most a packet's) into `out` (as
+/// many), the BVH walked once for all of them
+/// ([`crate::geometry::Geometry::hit_packet`]): the same hits.
+pub(super) fn first_hits<T: Voxel>(
+    ctx: &Frame<'_, T>,
+    s: &SurfaceCtx<'_>,
+    rays: &[(Vec3, Vec3)],
+    out: &mut [Option<(f32, Vec3)>],
+    interpolations: &mut u64,
+) {
+    let mut hits = [None; crate::geometry::packet::PACKET];
+    let hits = &mut hits[..rays.len()];
+    s.geometry.hit_packet(rays, hits);
+    for ((&(o, d), hit), out) in rays.iter().zip(&*hits).zip(out) {
+        *out = hit.map(|h| (h.t, shade(ctx, s, o, d, &h, interpolations)));
+    }
+}
+
 /// The lit linear colour of `hit` on the ray `origin + dir·t` (world).
 #[inline]
 pub(super) fn shade<T: Voxel>(

@@ -100,7 +100,8 @@ struct Rays<S: Simd> {
     ok: S::M,
 }
 
-/// `rays[base..base + n]` (`n ≤ S::N`) with their offsets `jit`, as
+/// `rays[base..base + n]` (`n ≤ S::N`) with their offsets `jit`, each
+/// ending at its `limit` (its first opaque surface, or ∞), as
 /// `Packets::setup` computes them ray by ray.
 ///
 /// # Safety
@@ -110,10 +111,11 @@ unsafe fn rays_at<S: Simd>(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     base: usize,
     n: usize,
 ) -> Rays<S> {
-    let mut a = [S::Af::default(); 7];
+    let mut a = [S::Af::default(); 8];
     for (i, (o, d)) in rays[base..base + n].iter().enumerate() {
         a[0][i] = o.x;
         a[1][i] = o.y;
@@ -122,6 +124,7 @@ unsafe fn rays_at<S: Simd>(
         a[4][i] = d.y;
         a[5][i] = d.z;
         a[6][i] = jit[base + i];
+        a[7][i] = limit[base + i];
     }
     // Voxel space: `(origin − origin_w) · inv_spacing`, `dir · inv_spacing`.
     let (ow, is) = (g.origin_w, g.inv_spacing);
@@ -139,6 +142,11 @@ unsafe fn rays_at<S: Simd>(
     let inv_d = [one / d[0], one / d[1], one / d[2]];
     let (t_in, t_out, hit) = intersect::<S>(o, inv_d, g.box_lo, g.box_hi);
     let hit = S::and(hit, S::from_bits((1u32 << n) - 1));
+    // A ray whose surface comes before the volume samples nothing; the
+    // others stop at theirs (`t_out.min(limit)`).
+    let limit = S::load(a[7]);
+    let hit = S::and(hit, S::lt(t_in, limit));
+    let t_out = fmin::<S>(t_out, limit);
     let (w0, w1, ok) = match g.occupied {
         Some((lo, hi)) => {
             let (a0, b0, m) = intersect::<S>(o, inv_d, lo, hi);
@@ -160,9 +168,10 @@ unsafe fn rays_at<S: Simd>(
     }
 }
 
-/// Sets up `lanes[..rays.len()]` as `Packets::lane` does for rays that no
-/// surface stops (`rays`: world origin and unit direction; `jit[i]`: lane
-/// `i`'s grid offset, its jitter times the step, 0 without jitter).
+/// Sets up `lanes[..rays.len()]` as `Packets::lane` does (`rays`: world
+/// origin and unit direction; `jit[i]`: lane `i`'s grid offset, its jitter
+/// times the step, 0 without jitter; `limit[i]`: where its first opaque
+/// surface stops it, ∞ where none does).
 /// Returns how many rays met the volume's box.
 ///
 /// # Safety
@@ -172,6 +181,7 @@ unsafe fn set_up<S: Simd>(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     lanes: &mut [Option<Lane>; LANES],
 ) -> u64 {
     let mut hits = 0;
@@ -187,7 +197,7 @@ unsafe fn set_up<S: Simd>(
             walk: (w0, w1),
             ok,
             ..
-        } = rays_at::<S>(g, rays, jit, base, n);
+        } = rays_at::<S>(g, rays, jit, limit, base, n);
         hits += S::bits(hit).count_ones() as u64;
         let t0 = t_in + jit;
         let st = S::splat(g.st);
@@ -262,7 +272,7 @@ unsafe fn first_block<S: Simd>(
 
 /// Sets up `lanes[..rays.len()]` and their block walks `starts` as
 /// `Packets::run_lane` and `RunWalk::new` do for the step-per-block
-/// marches' rays that no surface stops (the arguments as [`set_up`]'s).
+/// marches' rays (the arguments as [`set_up`]'s).
 /// Returns how many rays met the volume's box.
 ///
 /// # Safety
@@ -272,6 +282,7 @@ unsafe fn set_up_runs<S: Simd>(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     lanes: &mut [Option<Lane>; LANES],
     starts: &mut [Option<WalkStart>; LANES],
 ) -> u64 {
@@ -289,7 +300,7 @@ unsafe fn set_up_runs<S: Simd>(
             hit,
             walk: (w0, w1),
             ok,
-        } = rays_at::<S>(g, rays, jit, base, n);
+        } = rays_at::<S>(g, rays, jit, limit, base, n);
         hits += S::bits(hit).count_ones() as u64;
         let t0 = t_in + jit;
         let t_end = t_out + (t0 - t_in);
@@ -351,10 +362,11 @@ pub(super) unsafe fn set_up_runs_avx2(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     lanes: &mut [Option<Lane>; LANES],
     starts: &mut [Option<WalkStart>; LANES],
 ) -> u64 {
-    set_up_runs::<W8<false>>(g, rays, jit, lanes, starts)
+    set_up_runs::<W8<false>>(g, rays, jit, limit, lanes, starts)
 }
 
 /// [`set_up_runs`] in AVX-512 registers, sixteen lanes at once.
@@ -366,10 +378,11 @@ pub(super) unsafe fn set_up_runs_avx512(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     lanes: &mut [Option<Lane>; LANES],
     starts: &mut [Option<WalkStart>; LANES],
 ) -> u64 {
-    set_up_runs::<W16<false>>(g, rays, jit, lanes, starts)
+    set_up_runs::<W16<false>>(g, rays, jit, limit, lanes, starts)
 }
 
 /// [`set_up`] in AVX2 registers, eight lanes at a time.
@@ -381,9 +394,10 @@ pub(super) unsafe fn set_up_avx2(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     lanes: &mut [Option<Lane>; LANES],
 ) -> u64 {
-    set_up::<W8<false>>(g, rays, jit, lanes)
+    set_up::<W8<false>>(g, rays, jit, limit, lanes)
 }
 
 /// [`set_up`] in AVX-512 registers, sixteen lanes at once.
@@ -395,9 +409,10 @@ pub(super) unsafe fn set_up_avx512(
     g: &Geometry,
     rays: &[(Vec3, Vec3)],
     jit: &[f32; LANES],
+    limit: &[f32; LANES],
     lanes: &mut [Option<Lane>; LANES],
 ) -> u64 {
-    set_up::<W16<false>>(g, rays, jit, lanes)
+    set_up::<W16<false>>(g, rays, jit, limit, lanes)
 }
 
 /// [`Camera::ray`] for each pixel of `pixels` into `rays` (as many),
@@ -609,22 +624,31 @@ mod tests {
                     let mut stats = RenderStats::default();
                     let mut want = [None; LANES];
                     let mut jit = [0.0; LANES];
+                    // A third of the rays stop at a surface: before the
+                    // volume, in it or past it (each ray aims at a point
+                    // near the box, 40 along it).
+                    let mut limit = [f32::INFINITY; LANES];
+                    for (i, l) in limit.iter_mut().enumerate().take(n) {
+                        if (at + i) % 3 == 1 {
+                            *l = 25.0 + ((at + i) * 13 % 31) as f32;
+                        }
+                    }
                     for (i, (&ray, &px)) in r.iter().zip(&pixels).enumerate() {
-                        want[i] = pk.lane(ray, f32::INFINITY, px, 2, &mut stats);
+                        want[i] = pk.lane(ray, limit[i], px, 2, &mut stats);
                         if let Some(seed) = jitter {
                             jit[i] = crate::render::rng::pixel_sequence(seed, px.0, px.1, 2)
                                 * frame.step;
                         }
                     }
                     met += want.iter().flatten().count();
-                    let mut levels = vec![set_up_avx2 as unsafe fn(&_, &_, &_, &mut _) -> u64];
+                    let mut levels = vec![set_up_avx2 as unsafe fn(&_, &_, &_, &_, &mut _) -> u64];
                     if avx512 {
                         levels.push(set_up_avx512);
                     }
                     for set_up in levels {
                         let mut got = [None; LANES];
                         // SAFETY: the CPU has the instructions (checked above).
-                        let hits = unsafe { set_up(&g, r, &jit, &mut got) };
+                        let hits = unsafe { set_up(&g, r, &jit, &limit, &mut got) };
                         // Compared as printed: `-0.0` and `0.0` differ there.
                         assert_eq!(
                             format!("{got:?}"),
@@ -639,19 +663,20 @@ mod tests {
                     let mut want = [None; LANES];
                     for (i, (&ray, &px)) in r.iter().zip(&pixels).enumerate() {
                         want[i] = pk
-                            .run_lane(ray, f32::INFINITY, px, 2, &mut stats)
+                            .run_lane(ray, limit[i], px, 2, &mut stats)
                             .map(|(l, w)| (l, WalkStart::of(&w)));
                     }
                     walked += want.iter().flatten().count();
                     let mut levels =
-                        vec![set_up_runs_avx2 as unsafe fn(&_, &_, &_, &mut _, &mut _) -> u64];
+                        vec![set_up_runs_avx2 as unsafe fn(&_, &_, &_, &_, &mut _, &mut _) -> u64];
                     if avx512 {
                         levels.push(set_up_runs_avx512);
                     }
                     for set_up_runs in levels {
                         let (mut lanes, mut starts) = ([None; LANES], [None; LANES]);
                         // SAFETY: the CPU has the instructions (checked above).
-                        let hits = unsafe { set_up_runs(&g, r, &jit, &mut lanes, &mut starts) };
+                        let hits =
+                            unsafe { set_up_runs(&g, r, &jit, &limit, &mut lanes, &mut starts) };
                         let got: Vec<_> =
                             lanes.iter().zip(&starts).map(|(l, s)| l.zip(*s)).collect();
                         assert_eq!(

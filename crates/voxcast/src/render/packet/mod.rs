@@ -467,25 +467,36 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut behind: [Option<Vec3>; LANES] = [None; LANES];
         let mut ends = [[0.0f32; 2]; LANES];
         let mut keys = [0u64; LANES];
-        // A fixed step with no surface: the lanes set up in vector
-        // registers ([`lanes`]); a step-per-block march whose walks run in
-        // vector registers, with no surface: the lanes and where their
-        // walks start (`starts`), likewise.
+        // Where each lane's first opaque surface stops its ray (∞: none).
+        let mut limit = [f32::INFINITY; LANES];
+        if let Some(s) = self.surface.as_ref() {
+            let mut hits = [None; LANES];
+            surface::first_hits(
+                self.f,
+                s,
+                rays,
+                &mut hits[..rays.len()],
+                &mut stats.interpolations,
+            );
+            for ((h, l), b) in hits.iter().zip(&mut limit).zip(&mut behind) {
+                if let Some((t, rgb)) = *h {
+                    (*l, *b) = (t, Some(rgb));
+                }
+            }
+        }
+        // A fixed step: the lanes set up in vector registers ([`lanes`]);
+        // a step-per-block march whose walks run in vector registers: the
+        // lanes and where their walks start (`starts`), likewise.
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut starts: [Option<WalkStart>; LANES] = [None; LANES];
         #[cfg(target_arch = "x86_64")]
         let vector_runs = R::ON
-            && self.surface.is_none()
             && self
                 .runs
                 .is_some_and(|r| r.vector().is_some() || r.lod().is_some());
         #[cfg(target_arch = "x86_64")]
         let vector_set_up = vector_runs
-            || (!R::ON
-                && self.thr.is_none()
-                && self.strat.is_none()
-                && self.imp.is_none()
-                && self.surface.is_none());
+            || (!R::ON && self.thr.is_none() && self.strat.is_none() && self.imp.is_none());
         #[cfg(not(target_arch = "x86_64"))]
         let vector_set_up = false;
         #[cfg(target_arch = "x86_64")]
@@ -502,16 +513,16 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             stats.rays_hit += unsafe {
                 match (self.level, vector_runs) {
                     (Level::Avx2 | Level::Avx2Loads, false) => {
-                        lanes::set_up_avx2(&g, rays, &jit, &mut lanes)
+                        lanes::set_up_avx2(&g, rays, &jit, &limit, &mut lanes)
                     }
                     (Level::Avx512 | Level::Avx512Loads, false) => {
-                        lanes::set_up_avx512(&g, rays, &jit, &mut lanes)
+                        lanes::set_up_avx512(&g, rays, &jit, &limit, &mut lanes)
                     }
                     (Level::Avx2 | Level::Avx2Loads, true) => {
-                        lanes::set_up_runs_avx2(&g, rays, &jit, &mut lanes, &mut starts)
+                        lanes::set_up_runs_avx2(&g, rays, &jit, &limit, &mut lanes, &mut starts)
                     }
                     (Level::Avx512 | Level::Avx512Loads, true) => {
-                        lanes::set_up_runs_avx512(&g, rays, &jit, &mut lanes, &mut starts)
+                        lanes::set_up_runs_avx512(&g, rays, &jit, &limit, &mut lanes, &mut starts)
                     }
                 }
             };
@@ -519,15 +530,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // Otherwise ray by ray.
         if !vector_set_up {
             for (i, (&r, &pixel)) in rays.iter().zip(pixels).enumerate() {
-                let hit = surface::first_hit(
-                    self.f,
-                    self.surface.as_ref(),
-                    r.0,
-                    r.1,
-                    &mut stats.interpolations,
-                );
-                behind[i] = hit.map(|(_, rgb)| rgb);
-                let limit = hit.map_or(f32::INFINITY, |(t, _)| t);
+                let limit = limit[i];
                 lanes[i] = if R::ON {
                     self.run_lane(r, limit, pixel, pass, stats).map(|(l, w)| {
                         runs[i] = Some(w);
@@ -557,10 +560,12 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 } else {
                     self.lane(r, limit, pixel, pass, stats)
                 };
-                // A ray with nothing to sample shows its surface alone.
-                if let (None, Some(rgb)) = (lanes[i], behind[i]) {
-                    out[i] += rgb.extend(1.0);
-                }
+            }
+        }
+        // A ray with nothing to sample shows its surface alone.
+        for ((lane, b), out) in lanes.iter().zip(&behind).zip(out.iter_mut()) {
+            if let (None, Some(rgb)) = (lane, b) {
+                *out += rgb.extend(1.0);
             }
         }
         if lanes.iter().all(Option::is_none) {
