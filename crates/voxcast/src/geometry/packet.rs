@@ -9,17 +9,19 @@
 //! [`Geometry::hit`] does: so a lane's hit is `hit`'s, bit for bit, and the
 //! vector tests only decide which shape is nearest.
 
-use super::shapes::Aabb;
+use super::shapes::{Aabb, Plane};
 use super::{Geometry, Hit, Shape};
 use glam::Vec3;
 
 /// Rays per packet.
 pub const PACKET: usize = 16;
 
-/// A packet's rays, lane by lane: origins and the reciprocals of their
-/// directions. Lanes past the packet's rays repeat its first ray.
+/// A packet's rays, lane by lane: origins, directions and the
+/// reciprocals of the directions. Lanes past the packet's rays repeat its
+/// first ray.
 pub struct RaySoa {
     pub o: [[f32; PACKET]; 3],
+    pub d: [[f32; PACKET]; 3],
     pub inv_d: [[f32; PACKET]; 3],
 }
 
@@ -27,14 +29,20 @@ impl RaySoa {
     fn new(rays: &[(Vec3, Vec3)]) -> RaySoa {
         let mut r = RaySoa {
             o: [[0.0; PACKET]; 3],
+            d: [[0.0; PACKET]; 3],
             inv_d: [[0.0; PACKET]; 3],
         };
         for l in 0..PACKET {
             let (o, d) = rays[if l < rays.len() { l } else { 0 }];
-            let inv = Vec3::ONE / d;
             for a in 0..3 {
                 r.o[a][l] = o[a];
-                r.inv_d[a][l] = inv[a];
+                r.d[a][l] = d[a];
+            }
+        }
+        // `Vec3::ONE / d`, lanes at a time.
+        for a in 0..3 {
+            for l in 0..PACKET {
+                r.inv_d[a][l] = 1.0 / r.d[a][l];
             }
         }
         r
@@ -98,17 +106,34 @@ fn box_lanes(b: &Aabb, r: &RaySoa, t_max: &mut [f32; PACKET], id: &mut [u32; PAC
     }
 }
 
+/// Infinite plane `p` (number `me`) against every lane, as [`Plane::hit`]
+/// tests it: seen from the side its normal points to, nearer than the
+/// lane's `t_max`.
+#[inline(always)]
+fn plane_lanes(p: &Plane, r: &RaySoa, t_max: &mut [f32; PACKET], id: &mut [u32; PACKET], me: u32) {
+    let (n, q) = (p.normal, p.point);
+    for l in 0..PACKET {
+        let den = n.x * r.d[0][l] + n.y * r.d[1][l] + n.z * r.d[2][l];
+        let t = (n.x * (q.x - r.o[0][l]) + n.y * (q.y - r.o[1][l]) + n.z * (q.z - r.o[2][l])) / den;
+        let ok = den < 0.0 && t > 0.0 && t < t_max[l];
+        t_max[l] = if ok { t } else { t_max[l] };
+        id[l] = if ok { me } else { id[l] };
+    }
+}
+
 impl Geometry {
     /// [`Geometry::hit`] with `t_min = 0`, `t_max = ∞` for each of `rays`
     /// (world origin and direction; at most [`PACKET`]) into `hits` (as
     /// many): the same hits, the BVH walked once for all of them.
     pub fn hit_packet(&self, rays: &[(Vec3, Vec3)], hits: &mut [Option<Hit>]) {
         assert!(rays.len() <= PACKET && hits.len() == rays.len());
+        hits.fill(None);
         if rays.is_empty() {
             return;
         }
         let r = RaySoa::new(rays);
         let mut t_max = [f32::INFINITY; PACKET];
+        // The nearest shape (`shapes.len() + i`: infinite plane `i`).
         let mut id = [u32::MAX; PACKET];
         self.bvh.traverse_packet(&r, &mut t_max, |prims, t_max| {
             for &p in prims {
@@ -125,20 +150,38 @@ impl Geometry {
                 }
             }
         });
+        let bounded = self.shapes.len();
+        for (i, (p, _)) in self.infinite.iter().enumerate() {
+            plane_lanes(p, &r, &mut t_max, &mut id, (bounded + i) as u32);
+        }
+        // Each lane's hit by its shape's own test.
         for (l, (&(o, d), hit)) in rays.iter().zip(hits).enumerate() {
-            let best = match id[l] {
-                u32::MAX => None,
-                s => match self.shapes[s as usize].hit(o, d, 0.0, f32::INFINITY) {
-                    Some((t, n)) => Some((t, (n, s as usize))),
-                    // A ray that the lanes' rounding let in and the scalar
-                    // test does not (on a face's plane): the scalar walk.
-                    None => {
-                        *hit = self.hit(o, d, 0.0, f32::INFINITY);
-                        continue;
-                    }
-                },
+            let s = id[l] as usize;
+            let found = if id[l] == u32::MAX {
+                continue;
+            } else if s < bounded {
+                self.shapes[s].hit(o, d, 0.0, f32::INFINITY).map(|(t, n)| {
+                    *hit = Some(Hit {
+                        t,
+                        normal: self.shading_normal(s, o + d * t, n),
+                        albedo: self.albedo[s],
+                    });
+                })
+            } else {
+                let (p, albedo) = &self.infinite[s - bounded];
+                p.hit(o, d, 0.0, f32::INFINITY).map(|(t, normal)| {
+                    *hit = Some(Hit {
+                        t,
+                        normal,
+                        albedo: *albedo,
+                    });
+                })
             };
-            *hit = self.nearest(o, d, 0.0, f32::INFINITY, best);
+            // A ray that the lanes' rounding let in and the shape's test
+            // does not (on a face's plane): the scalar walk.
+            if found.is_none() {
+                *hit = self.hit(o, d, 0.0, f32::INFINITY);
+            }
         }
     }
 }

@@ -36,7 +36,9 @@ pub(super) fn first_hit<T: Voxel>(
 
 /// [`first_hit`] for each of `rays` (at most a packet's) into `out` (as
 /// many), the BVH walked once for all of them
-/// ([`crate::geometry::Geometry::hit_packet`]): the same hits.
+/// ([`crate::geometry::Geometry::hit_packet`]) and the hits lit together
+/// ([`crate::geometry::SurfaceLight::shade_packet`]): the same hits and
+/// colours.
 pub(super) fn first_hits<T: Voxel>(
     ctx: &Frame<'_, T>,
     s: &SurfaceCtx<'_>,
@@ -44,11 +46,25 @@ pub(super) fn first_hits<T: Voxel>(
     out: &mut [Option<(f32, Vec3)>],
     interpolations: &mut u64,
 ) {
-    let mut hits = [None; crate::geometry::packet::PACKET];
+    const P: usize = crate::geometry::packet::PACKET;
+    let mut hits = [None; P];
     let hits = &mut hits[..rays.len()];
     s.geometry.hit_packet(rays, hits);
-    for ((&(o, d), hit), out) in rays.iter().zip(&*hits).zip(out) {
-        *out = hit.map(|h| (h.t, shade(ctx, s, o, d, &h, interpolations)));
+    // Lane by lane: albedo, normal, direction (x, y, z) and the light.
+    let (mut a, mut n, mut d) = ([[0.0; P]; 3], [[0.0; P]; 3], [[0.0; P]; 3]);
+    let mut light = [1.0; P];
+    for (l, (&(o, dir), hit)) in rays.iter().zip(&*hits).enumerate() {
+        let Some(h) = hit else { continue };
+        for k in 0..3 {
+            (a[k][l], n[k][l], d[k][l]) = (h.albedo[k], h.normal[k], dir[k]);
+        }
+        if s.shadows {
+            light[l] = light_at(ctx, s, o, dir, h, interpolations);
+        }
+    }
+    let rgb = s.light.shade_packet(&a, &n, &d, &light);
+    for (l, (hit, out)) in hits.iter().zip(out).enumerate() {
+        *out = hit.map(|h| (h.t, Vec3::new(rgb[0][l], rgb[1][l], rgb[2][l])));
     }
 }
 
@@ -62,25 +78,40 @@ pub(super) fn shade<T: Voxel>(
     hit: &Hit,
     interpolations: &mut u64,
 ) -> Vec3 {
-    let mut light = 1.0;
-    if s.shadows {
-        let facing = if hit.normal.dot(dir) > 0.0 {
-            -hit.normal
-        } else {
-            hit.normal
-        };
-        if facing.dot(s.light.to_light) > 0.0 {
-            // Off the surface by a fraction of a voxel, so the shadow ray
-            // does not find the surface it starts on.
-            let p = origin + dir * hit.t + facing * (1e-3 * ctx.unit);
-            light = if s.geometry.occluded(p, s.light.to_light, 0.0, f32::INFINITY) {
-                0.0
-            } else {
-                transmittance(ctx, p, s.light.to_light, interpolations)
-            };
-        }
-    }
+    let light = light_at(ctx, s, origin, dir, hit, interpolations);
     s.light.shade(hit.albedo, hit.normal, dir, light)
+}
+
+/// The fraction of the key light that reaches `hit`: 1 without shadows,
+/// else what the shapes and the smoke between it and the light let through.
+#[inline]
+fn light_at<T: Voxel>(
+    ctx: &Frame<'_, T>,
+    s: &SurfaceCtx<'_>,
+    origin: Vec3,
+    dir: Vec3,
+    hit: &Hit,
+    interpolations: &mut u64,
+) -> f32 {
+    if !s.shadows {
+        return 1.0;
+    }
+    let facing = if hit.normal.dot(dir) > 0.0 {
+        -hit.normal
+    } else {
+        hit.normal
+    };
+    if facing.dot(s.light.to_light) <= 0.0 {
+        return 1.0;
+    }
+    // Off the surface by a fraction of a voxel, so the shadow ray does not
+    // find the surface it starts on.
+    let p = origin + dir * hit.t + facing * (1e-3 * ctx.unit);
+    if s.geometry.occluded(p, s.light.to_light, 0.0, f32::INFINITY) {
+        0.0
+    } else {
+        transmittance(ctx, p, s.light.to_light, interpolations)
+    }
 }
 
 /// Transmittance of the volume from world point `p` along unit `l` to the
