@@ -224,13 +224,8 @@ mod tests {
     /// exponents, in and out of shadow.
     #[test]
     fn packet_shading_is_the_scalar_shading() {
-        let mut seed = 0x243f_6a88_85a3_08d3u64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::render::rng::Rng::new(0x243f_6a88_85a3_08d3, 0);
+        let mut rnd = move || rng.uniform();
         let (mut lit, mut dark) = (0, 0);
         for shininess in [32.0, 7.0, 7.5, 0.0] {
             let l = SurfaceLight {

@@ -2,12 +2,12 @@
 //! *Interactive rendering with coherent ray tracing*): the BVH is walked
 //! once for up to [`PACKET`] neighbouring rays, a node entered where any of
 //! them meets it, and the boxes — the rooms' walls and furniture, an FDS
-//! case's obstructions — tested for every lane by loops the compiler turns
-//! into vector instructions. Rectangles and triangles are tested lane by
-//! lane. Then, lane by lane, the nearest shape's hit is computed again by
-//! its own scalar test and the infinite planes are tested, as
-//! [`Geometry::hit`] does: so a lane's hit is `hit`'s, bit for bit, and the
-//! vector tests only decide which shape is nearest.
+//! case's obstructions — and then the infinite planes (floors) tested for
+//! every lane by loops the compiler turns into vector instructions.
+//! Rectangles and triangles are tested lane by lane. The vector tests only
+//! decide which shape is nearest: lane by lane, that shape's hit is then
+//! computed again by its own scalar test, so a lane's hit is
+//! [`Geometry::hit`]'s, bit for bit.
 
 use super::shapes::{Aabb, Plane};
 use super::{Geometry, Hit, Shape};
@@ -154,7 +154,9 @@ impl Geometry {
         for (i, (p, _)) in self.infinite.iter().enumerate() {
             plane_lanes(p, &r, &mut t_max, &mut id, (bounded + i) as u32);
         }
-        // Each lane's hit by its shape's own test.
+        // Each lane's hit by its shape's own test, written in place (passed
+        // back through a temporary, the hit cost a quarter of this function
+        // in a store the next load could not forward).
         for (l, (&(o, d), hit)) in rays.iter().zip(hits).enumerate() {
             let s = id[l] as usize;
             let found = if id[l] == u32::MAX {
@@ -194,13 +196,8 @@ mod tests {
     /// A room of everything: boxes (some overlapping, some inside others),
     /// rectangles, triangles and infinite planes.
     fn clutter() -> Geometry {
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::render::rng::Rng::new(0x2545_f491_4f6c_dd1d, 0);
+        let mut rnd = move || rng.uniform();
         let mut v = |s: f32| Vec3::new(rnd(), rnd(), rnd()) * s;
         let mut p = Parts::default();
         for i in 0..40 {
@@ -259,13 +256,8 @@ mod tests {
     #[test]
     fn packet_hits_are_the_scalar_hits() {
         let g = clutter();
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let mut rnd = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 40) as f32 / (1u64 << 24) as f32
-        };
+        let mut rng = crate::render::rng::Rng::new(0x9e37_79b9_7f4a_7c15, 0);
+        let mut rnd = move || rng.uniform();
         let mut rays = Vec::new();
         for i in 0..4000 {
             // Coherent bundles (a camera's) and scattered rays.

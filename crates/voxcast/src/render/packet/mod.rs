@@ -468,6 +468,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let mut ends = [[0.0f32; 2]; LANES];
         let mut keys = [0u64; LANES];
         // Where each lane's first opaque surface stops its ray (∞: none).
+        const _: () = assert!(LANES <= crate::geometry::packet::PACKET);
         let mut limit = [f32::INFINITY; LANES];
         if let Some(s) = self.surface.as_ref() {
             let mut hits = [None; LANES];
