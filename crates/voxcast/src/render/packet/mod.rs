@@ -478,6 +478,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 rays,
                 &mut hits[..rays.len()],
                 &mut stats.interpolations,
+                |marches, tau| self.shadow_taus(marches, tau),
             );
             for ((h, l), b) in hits.iter().zip(&mut limit).zip(&mut behind) {
                 if let Some((t, rgb)) = *h {
@@ -789,6 +790,29 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         }
     }
 
+    /// Each lane's sum of the extinction at its shadow ray's samples
+    /// ([`surface::march_tau`]), all lanes at once in vector registers.
+    fn shadow_taus(&self, marches: &[Option<surface::ShadowMarch>; LANES], tau: &mut [f32; LANES]) {
+        // SAFETY: `level` checked the CPU before any packet was made (the
+        // only caller, `Job::packets`, takes it from there), `fits` for the
+        // grid.
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            match self.level {
+                Level::Avx2 => shadow::taus_avx2(self, marches, tau),
+                Level::Avx2Loads => shadow::taus_avx2_loads(self, marches, tau),
+                Level::Avx512 => shadow::taus_avx512(self, marches, tau),
+                Level::Avx512Loads => shadow::taus_avx512_loads(self, marches, tau),
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        for (m, t) in marches.iter().zip(tau) {
+            if let Some(m) = m {
+                *t = surface::march_tau(self.f, m);
+            }
+        }
+    }
+
     /// The last sample of lane `l` (index `k`), composited over its
     /// stretch to the exit as the scalar march does; true when it ends
     /// the ray.
@@ -830,6 +854,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 
 #[cfg(target_arch = "x86_64")]
 mod lanes;
+#[cfg(target_arch = "x86_64")]
+mod shadow;
 #[cfg(target_arch = "x86_64")]
 mod simd;
 #[cfg(target_arch = "x86_64")]
