@@ -144,7 +144,7 @@ impl Bvh {
     /// `t_max` where one is nearer. Children are taken left first (the
     /// lanes' nearest hits do not depend on the order, only the work does).
     #[inline]
-    pub fn traverse_packet(
+    pub(super) fn traverse_packet(
         &self,
         r: &RaySoa,
         t_max: &mut [f32; PACKET],

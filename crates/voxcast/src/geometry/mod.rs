@@ -374,30 +374,18 @@ impl Geometry {
     /// The nearest surface on `o + d·t`, `t_min < t < t_max`.
     #[inline]
     pub fn hit(&self, o: Vec3, d: Vec3, t_min: f32, t_max: f32) -> Option<Hit> {
-        let best = self.bvh.traverse(o, d, t_min, t_max, false, |i, tm| {
-            self.shapes[i]
-                .hit(o, d, t_min, tm)
-                .map(|(t, n)| (t, (n, i)))
-        });
-        self.nearest(o, d, t_min, t_max, best)
-    }
-
-    /// The hit of the bounded shapes' nearest, `best` (`t`, geometric
-    /// normal, shape), or an infinite plane's nearer than it.
-    #[inline]
-    fn nearest(
-        &self,
-        o: Vec3,
-        d: Vec3,
-        t_min: f32,
-        t_max: f32,
-        best: Option<(f32, (Vec3, usize))>,
-    ) -> Option<Hit> {
-        let mut best = best.map(|(t, (n, i))| Hit {
-            t,
-            normal: self.shading_normal(i, o + d * t, n),
-            albedo: self.albedo[i],
-        });
+        let mut best = self
+            .bvh
+            .traverse(o, d, t_min, t_max, false, |i, tm| {
+                self.shapes[i]
+                    .hit(o, d, t_min, tm)
+                    .map(|(t, n)| (t, (n, i)))
+            })
+            .map(|(t, (n, i))| Hit {
+                t,
+                normal: self.shading_normal(i, o + d * t, n),
+                albedo: self.albedo[i],
+            });
         for (p, c) in &self.infinite {
             let tm = best.map_or(t_max, |h| h.t);
             if let Some((t, n)) = p.hit(o, d, t_min, tm) {

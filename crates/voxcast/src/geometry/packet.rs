@@ -19,10 +19,10 @@ pub const PACKET: usize = 16;
 /// A packet's rays, lane by lane: origins, directions and the
 /// reciprocals of the directions. Lanes past the packet's rays repeat its
 /// first ray.
-pub struct RaySoa {
-    pub o: [[f32; PACKET]; 3],
-    pub d: [[f32; PACKET]; 3],
-    pub inv_d: [[f32; PACKET]; 3],
+pub(super) struct RaySoa {
+    o: [[f32; PACKET]; 3],
+    d: [[f32; PACKET]; 3],
+    inv_d: [[f32; PACKET]; 3],
 }
 
 impl RaySoa {
@@ -83,7 +83,7 @@ fn slabs(b: &Aabb, r: &RaySoa, l: usize) -> (f32, f32) {
 
 /// Whether any lane's ray meets `b` between 0 and its `t_max`.
 #[inline(always)]
-pub fn meets_any(b: &Aabb, r: &RaySoa, t_max: &[f32; PACKET]) -> bool {
+pub(super) fn meets_any(b: &Aabb, r: &RaySoa, t_max: &[f32; PACKET]) -> bool {
     let mut any = 0u32;
     for (l, &tm) in t_max.iter().enumerate() {
         let (near, far) = slabs(b, r, l);

@@ -68,9 +68,7 @@ pub(super) fn first_hits<T: Voxel>(
                 Err(lit) => light[l] = lit,
                 Ok(p) => {
                     marches[l] = shadow_march(ctx, p, s.light.to_light);
-                    if let Some(m) = &marches[l] {
-                        *interpolations += m.k1.saturating_sub(m.k0) as u64;
-                    }
+                    *interpolations += marches[l].map_or(0, |m| m.lookups());
                 }
             }
         }
@@ -80,7 +78,7 @@ pub(super) fn first_hits<T: Voxel>(
         taus(&marches, &mut tau);
         for ((m, tau), light) in marches.iter().zip(tau).zip(&mut light) {
             if let Some(m) = m {
-                *light = (-tau * m.ds / ctx.unit).exp();
+                *light = m.light(tau, ctx.unit);
             }
         }
     }
@@ -165,6 +163,20 @@ pub(super) struct ShadowMarch {
     pub k1: u32,
 }
 
+impl ShadowMarch {
+    /// The grid lookups it takes.
+    pub fn lookups(&self) -> u64 {
+        self.k1.saturating_sub(self.k0) as u64
+    }
+
+    /// The light it lets through, Beer–Lambert, from the sum `tau` of the
+    /// extinction at its samples ([`march_tau`]; `unit`: the frame's unit
+    /// length in voxels).
+    pub fn light(&self, tau: f32, unit: f32) -> f32 {
+        (-tau * self.ds / unit).exp()
+    }
+}
+
 /// Transmittance of the volume from world point `p` along unit `l` to the
 /// volume's edge: midpoint sums of the extinction at the render's base step.
 ///
@@ -186,8 +198,8 @@ pub(super) fn transmittance<T: Voxel>(
     let Some(m) = shadow_march(ctx, p, l) else {
         return 1.0;
     };
-    *interpolations += m.k1.saturating_sub(m.k0) as u64;
-    (-march_tau(ctx, &m) * m.ds / ctx.unit).exp()
+    *interpolations += m.lookups();
+    m.light(march_tau(ctx, &m), ctx.unit)
 }
 
 /// Where [`transmittance`] samples the ray from world point `p` along
