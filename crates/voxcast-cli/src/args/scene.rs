@@ -188,11 +188,11 @@ pub struct SceneArgs {
     /// to front summed front to back without early termination); `avx2`
     /// keeps the
     /// packets to AVX2, fetching with its gather instructions; `avx2-loads`
-    /// to AVX2 fetching with scalar loads (what `auto` picks on AMD CPUs
-    /// without AVX-512, whose gathers are slower); `avx512` and
-    /// `avx512-loads` the same at AVX-512 (`auto` picks the loads on AMD,
-    /// the gathers on Intel); `scalar` always runs the scalar loop (the same
-    /// picture).
+    /// to AVX2 fetching with scalar loads; `avx512` and `avx512-loads` the
+    /// same at AVX-512. `auto` picks the loads on AMD and on Intel's
+    /// Skylake to Ice Lake (whose gathers are slower), the gathers on other
+    /// Intel CPUs; `voxcast bench` prints the level. `scalar` always runs
+    /// the scalar loop (the same picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,
     /// Gradient (Blinn–Phong) shading: on or off (default on).

@@ -72,6 +72,7 @@ macro_rules! entry {
     };
 }
 
+mod dispatch;
 mod distance;
 mod importance;
 mod lod;
@@ -100,85 +101,7 @@ pub(in crate::render) use zpairs::ZPairs;
 /// register, AVX2 as two packets of eight.
 pub(super) const LANES: usize = 16;
 
-/// The instruction set a packet is compiled for, picked at run time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Level {
-    /// AVX2 + FMA: eight lanes in 256-bit registers (a packet's sixteen
-    /// rays as two packets of eight), fetching by the AVX2 gathers.
-    Avx2,
-    /// The same, fetching lane by lane with scalar loads: faster where the
-    /// gathers are slow (AMD before Zen 4: `packet::gathers_by_loads`).
-    #[serde(rename = "avx2-loads")]
-    Avx2Loads,
-    /// AVX-512 F: sixteen lanes in 512-bit registers, lane masks in mask
-    /// registers, thirty-two registers.
-    Avx512,
-    /// The same, fetching lane by lane with scalar loads: faster where the
-    /// AVX-512 gathers are slow (AMD's Zen 5: `packet::gathers_by_loads`).
-    #[serde(rename = "avx512-loads")]
-    Avx512Loads,
-}
-
-impl Level {
-    pub fn name(self) -> &'static str {
-        match self {
-            Level::Avx2 => "avx2",
-            Level::Avx2Loads => "avx2-loads",
-            Level::Avx512 => "avx512",
-            Level::Avx512Loads => "avx512-loads",
-        }
-    }
-}
-
-/// The packets' level on this CPU under `simd`, or `None` where the scalar
-/// loop runs (no AVX2 + FMA, not x86-64, or `Simd::Scalar`).
-pub fn level(simd: super::Simd) -> Option<Level> {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use super::Simd;
-        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
-        let avx512 = std::is_x86_feature_detected!("avx512f");
-        match simd {
-            Simd::Scalar => None,
-            _ if !avx2 => None,
-            Simd::Auto if avx512 && gathers_by_loads() => Some(Level::Avx512Loads),
-            Simd::Auto if avx512 => Some(Level::Avx512),
-            Simd::Auto if gathers_by_loads() => Some(Level::Avx2Loads),
-            Simd::Auto | Simd::Avx2 => Some(Level::Avx2),
-            Simd::Avx2Loads => Some(Level::Avx2Loads),
-            Simd::Avx512 | Simd::Avx512Loads if !avx512 => None,
-            Simd::Avx512 => Some(Level::Avx512),
-            Simd::Avx512Loads => Some(Level::Avx512Loads),
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let _ = simd;
-        None
-    }
-}
-
-/// Whether the packets fetch by scalar loads rather than the gather
-/// instructions: on AMD's cores (and Hygon's, the same design) a gather
-/// is slower than the loads. Measured on an AMD EPYC (Zen 3, AVX2), the
-/// same frames, alternating builds: Marschner–Lobb 256³ unshaded 156–162
-/// → 125–131 ms, the teapot 57–64 → 53–60 ms; on an AMD EPYC (Zen 5,
-/// AVX-512), one thread: 131–136 → 92–95 ms and 49–51 → 39–41 ms
-/// (docs/engine.md, "Gathers or loads"). On an Intel Xeon the table rows
-/// were faster by gathers than by loads (docs/engine.md, "Table rows by
-/// 64-bit gathers"), so the gathers stay the default elsewhere.
-#[cfg(target_arch = "x86_64")]
-pub fn gathers_by_loads() -> bool {
-    // SAFETY: CPUID leaf 0 exists on every x86-64 CPU.
-    #[allow(unused_unsafe)]
-    let r = unsafe { std::arch::x86_64::__cpuid(0) };
-    let mut v = [0u8; 12];
-    v[..4].copy_from_slice(&r.ebx.to_le_bytes());
-    v[4..8].copy_from_slice(&r.edx.to_le_bytes());
-    v[8..].copy_from_slice(&r.ecx.to_le_bytes());
-    &v == b"AuthenticAMD" || &v == b"HygonGenuine"
-}
+pub use dispatch::{level, Level};
 
 /// Whether the packets can fetch from grid `g`: 32-bit gather offsets, and
 /// a +x neighbour in every row (the pair fetch).

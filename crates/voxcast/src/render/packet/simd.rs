@@ -112,16 +112,17 @@ pub(super) trait Simd: Copy {
 
 /// Eight lanes in AVX2 registers. `LOADS`: gathers and table rows fetched
 /// by one scalar load per lane instead of the AVX2 gather instructions,
-/// which AMD's cores before Zen 4 run slower than the loads (see
-/// [`super::gathers_by_loads`]); the same values either way.
+/// which AMD's cores and Intel's from Skylake to Ice Lake run slower than
+/// the loads (see [`super::dispatch::loads_beat_gathers`]); the same values either
+/// way.
 #[derive(Clone, Copy)]
 pub(super) struct W8<const LOADS: bool>;
 
 /// Sixteen lanes in AVX-512 registers. `LOADS`: every gather (voxels,
 /// 64-bit pairs, the walks' floats) and the table rows fetched by one
 /// scalar load per lane (sixteen 128-bit row loads and a transpose for the
-/// rows), which AMD's Zen 5 runs much faster than its AVX-512 gathers
-/// (see [`super::gathers_by_loads`]); the same values either way.
+/// rows), which AMD's Zen 5 and Intel's Skylake-SP to Ice Lake run faster
+/// than their AVX-512 gathers (see [`super::dispatch::loads_beat_gathers`]); the same values either way.
 #[derive(Clone, Copy)]
 pub(super) struct W16<const LOADS: bool>;
 
