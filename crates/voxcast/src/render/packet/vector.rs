@@ -148,8 +148,11 @@ impl<S: Simd> Skips<S> {
 
     /// The lanes of `act` whose samples `p` lie in an empty block (the
     /// block walk's rule: on a face, a ray going down belongs to the
-    /// block below), and their exits from the empty cube around it: the
-    /// nearest far face (unspecified where the mask is empty).
+    /// block below), and each lane's exit from the cube around its block:
+    /// the empty cube's nearest far face for those lanes, for the others
+    /// the far face of the cube of blocks that can show around theirs
+    /// ([`super::skip_distances`]; at least their own block, as for a map
+    /// that gives the visible blocks 0).
     ///
     /// # Safety
     /// The width's instructions; `pk.empty` was set.
@@ -171,10 +174,9 @@ impl<S: Simd> Skips<S> {
         let b = b3[0] + S::mullo(self.ncx, b3[1] + S::mullo(self.ncy, b3[2]));
         let e = S::gather::<4>(self.empty, b);
         let skip = S::and(act, S::positive(e));
-        if S::bits(skip) == 0 {
-            return (skip, S::splat(0.0));
-        }
-        let (o, inv_d, re, bs) = (r.o, r.inv_d, S::to_f(e), self.bs);
+        let (o, inv_d, bs) = (r.o, r.inv_d, self.bs);
+        let ef = S::to_f(e);
+        let re = S::max(S::abs(ef), S::splat(1.0));
         let te = S::min(
             S::min(
                 exit::<S>(o[0], d[0], inv_d[0], b3[0], re, bs),
@@ -649,6 +651,9 @@ unsafe fn march<
     let skips = Skips::<S>::of(pk);
     // Lane state.
     let mut live = S::from_bits(live_bits);
+    // The first sample each lane must test for emptiness (`SKIP`): past
+    // the cube of visible blocks it was last found in.
+    let mut kfull = S::splat(f32::NEG_INFINITY);
     let mut walked = S::from_bits(0);
     // Each lane goes on from the colour and opacity it holds (zero for a
     // new ray; a brick's predecessors' for the out-of-core renderer).
@@ -724,16 +729,22 @@ unsafe fn march<
         let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
         let mut samp = act;
         let mut next = kv + one;
-        if SKIP {
+        // Only lanes past the cube of visible blocks they were last found
+        // in ask the map again.
+        if SKIP && S::bits(S::and(act, S::ge(kv, kfull))) != 0 {
             let (skip, te) = skips.exit(&vol, p, &rays, act);
+            // First sample past the exit (a thousandth of a step early,
+            // more than the reciprocals' rounding: a sample still inside
+            // is tested again, never one skipped).
+            let kn = S::ceil((te - t0) * inv_st - S::splat(1e-3));
             if S::bits(skip) != 0 {
-                // First sample past the exit (a thousandth of a step
-                // early, more than the reciprocals' rounding: a sample
-                // still inside is tested again, never one skipped).
-                let kn = S::ceil((te - t0) * inv_st - S::splat(1e-3));
                 next = S::blend(skip, next, S::max(next, kn));
                 samp = S::but(act, skip);
             }
+            // The others sample without asking up to a hundredth of a
+            // step before the far face of their visible cube.
+            let kf = S::ceil((te - t0) * inv_st - S::splat(1e-2));
+            kfull = S::blend(S::but(act, skip), kfull, kf);
         }
         // A step-per-block march: the run's last sample waits for its
         // stretch; grouped reuse evaluates only where a group starts.
