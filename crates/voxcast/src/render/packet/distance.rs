@@ -2,10 +2,9 @@
 //! around it reaches, so a lane in an empty block jumps over the whole
 //! empty cube around it in one step instead of one block per step.
 //!
-//! The value of a block is its chessboard (L∞) distance, in blocks, to the
-//! nearest block that is not empty: 0 for a block that is not empty, and
-//! `D > 0` where every block within `D − 1` of it, on every axis, is
-//! empty. A lane at block `b` may therefore go on to the far face of the
+//! The value of an empty block is its chessboard (L∞) distance, in
+//! blocks, to the nearest block that is not empty: `D > 0` where every
+//! block within `D − 1` of it, on every axis, is empty. A lane at block `b` may therefore go on to the far face of the
 //! cube of blocks `b − (D − 1) … b + (D − 1)` without passing a sample
 //! that could show: the empty-space distance maps of Cohen & Sheffer
 //! ("Proximity clouds", 1994), as GPU ray casters use them (Deakin &
@@ -115,7 +114,8 @@ mod tests {
     use super::*;
 
     /// The distances equal the brute-force chessboard distance to the
-    /// nearest block that is not empty, on random grids of every density.
+    /// nearest block of the other kind (negated for the visible blocks),
+    /// on random grids of every density.
     #[test]
     fn distances_are_the_chessboard_distances_to_the_nearest_block_of_the_other_kind() {
         let mut seed = 0x9e37_79b9_7f4a_7c15u64;

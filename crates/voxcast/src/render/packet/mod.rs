@@ -24,8 +24,9 @@
 //! when no lane's sample is visible. With empty-space skipping a
 //! lane whose sample falls in an empty block jumps to its first sample
 //! past the empty cube around that block ([`skip_distances`]: one gather
-//! of the blocks' distances per iteration), so a long empty stretch costs
-//! a lane a step or two, not a step per block.
+//! of the blocks' distances), so a long empty stretch costs a lane a step
+//! or two, not a step per block; a lane in a visible block asks the map
+//! again only once past the cube of visible blocks around it.
 //!
 //! The vector code is written once over the [`simd::Simd`] operations and
 //! compiled at both widths. Its arithmetic is the scalar path's, operation
@@ -124,9 +125,10 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub stop: f32,
     /// Seed of the per-pixel start jitter.
     pub jitter: Option<u64>,
-    /// With skipping on, each block's skip distance: 0 where it is not
-    /// empty, else how far the empty space around it reaches
-    /// ([`skip_distances`]).
+    /// With skipping on, each block's skip distance: how far the empty
+    /// space around an empty block reaches, and minus how far the visible
+    /// blocks around a visible one reach ([`skip_distances`]; 0 for every
+    /// visible block in a map of [`distances_in_place`]).
     pub empty: Option<&'a [i32]>,
     /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
     /// flat colour.
