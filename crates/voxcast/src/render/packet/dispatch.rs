@@ -69,6 +69,15 @@ pub fn level(simd: crate::render::Simd) -> Option<Level> {
 /// family and model).
 #[cfg(target_arch = "x86_64")]
 fn gathers_by_loads() -> bool {
+    // CPUID once per process: `level` runs for every render (in a virtual
+    // machine each CPUID is a trap to the hypervisor).
+    static LOADS: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *LOADS.get_or_init(cpuid_loads)
+}
+
+/// [`gathers_by_loads`] from CPUID.
+#[cfg(target_arch = "x86_64")]
+fn cpuid_loads() -> bool {
     use std::arch::x86_64::__cpuid;
     // SAFETY: CPUID leaves 0 and 1 exist on every x86-64 CPU.
     #[allow(unused_unsafe)]

@@ -733,17 +733,19 @@ unsafe fn march<
         // in ask the map again.
         if SKIP && S::bits(S::and(act, S::ge(kv, kfull))) != 0 {
             let (skip, te) = skips.exit(&vol, p, &rays, act);
-            // First sample past the exit (a thousandth of a step early,
-            // more than the reciprocals' rounding: a sample still inside
-            // is tested again, never one skipped).
-            let kn = S::ceil((te - t0) * inv_st - S::splat(1e-3));
+            // The exit in steps from the lane's first sample.
+            let ke = (te - t0) * inv_st;
             if S::bits(skip) != 0 {
+                // First sample past the exit (a thousandth of a step
+                // early, more than the reciprocals' rounding: a sample
+                // still inside is tested again, never one skipped).
+                let kn = S::ceil(ke - S::splat(1e-3));
                 next = S::blend(skip, next, S::max(next, kn));
                 samp = S::but(act, skip);
             }
             // The others sample without asking up to a hundredth of a
             // step before the far face of their visible cube.
-            let kf = S::ceil((te - t0) * inv_st - S::splat(1e-2));
+            let kf = S::ceil(ke - S::splat(1e-2));
             kfull = S::blend(S::but(act, skip), kfull, kf);
         }
         // A step-per-block march: the run's last sample waits for its
