@@ -199,6 +199,11 @@ pub(super) struct Vol<S: Simd> {
     last: [S::I; 3],
     sy: S::I,
     sz: S::I,
+    /// The z-paired copy's bytes from one row (`[dy, dz]`) or, for f32,
+    /// one column (`dx`) to the next: the fetches of one cell or one
+    /// gradient offset the copy's pointer, not the lanes' indices, so
+    /// the loads' width takes each lane's index out of its vector once.
+    zp_step: [isize; 3],
     dimx: S::I,
     dimy: S::I,
     /// The element index of voxel (1, 1, 1).
@@ -233,6 +238,10 @@ impl<S: Simd> Vol<S> {
                 S::splat_i(last[2] as i32),
             ],
             sy: S::splat_i(step[1] as i32),
+            zp_step: {
+                let e = if T::KIND == VoxelKind::F32 { 8 } else { 2 };
+                [e, e * step[1] as isize, e * step[2] as isize]
+            },
             sz: S::splat_i(step[2] as i32),
             dimx: S::splat_i(dims[0] as i32),
             dimy: S::splat_i(dims[1] as i32),
@@ -285,15 +294,16 @@ impl<S: Simd> Vol<S> {
     unsafe fn corners<T: Voxel>(&self, base: S::I) -> [S::F; 8] {
         if T::KIND == VoxelKind::U8 {
             // Two gathers: rows y and y + 1 of the z-paired copy.
-            cell_of::<S>(self.quad(base), self.quad(base + self.sy))
+            let dy = self.zp_step[1];
+            cell_of::<S>(self.quad(base, 0), self.quad(base, dy))
         } else if T::KIND == VoxelKind::F32 {
             // Rows y and y + 1 of the z-paired copy: a 64-bit gather at
             // x and one at x + 1 each.
-            let (one, sy) = (S::splat_i(1), self.sy);
-            let (c000, c001) = self.z_pair(base);
-            let (c100, c101) = self.z_pair(base + one);
-            let (c010, c011) = self.z_pair(base + sy);
-            let (c110, c111) = self.z_pair(base + sy + one);
+            let [dx, dy, _] = self.zp_step;
+            let (c000, c001) = self.z_pair(base, 0);
+            let (c100, c101) = self.z_pair(base, dx);
+            let (c010, c011) = self.z_pair(base, dy);
+            let (c110, c111) = self.z_pair(base, dy + dx);
             [c000, c100, c010, c110, c001, c101, c011, c111]
         } else {
             let (d, n) = (self.data, self.len_bytes);
@@ -306,26 +316,30 @@ impl<S: Simd> Vol<S> {
     }
 
     /// f32 grids: voxels `(x, z)` and `(x, z + 1)` at element `i` of the
-    /// z-paired copy, in one 64-bit gather.
+    /// z-paired copy, `off` bytes on, in one 64-bit gather.
     #[inline(always)]
-    unsafe fn z_pair(&self, i: S::I) -> (S::F, S::F) {
-        let (lo, hi) = S::gather_pair::<8>(self.zp as *const i64, i);
+    unsafe fn z_pair(&self, i: S::I, off: isize) -> (S::F, S::F) {
+        let p = self.zp.wrapping_offset(off) as *const i64;
+        let (lo, hi) = S::gather_pair::<8>(p, i);
         (S::of_bits(lo), S::of_bits(hi))
     }
 
-    /// u8 grids: the z-paired copy's 64 bits at element `i − 1`, as two
-    /// [`Vol::quad`]s: columns x − 1, x and x + 1, x + 2.
+    /// u8 grids: the z-paired copy's 64 bits at element `i − 1`, `off`
+    /// bytes on, as two [`Vol::quad`]s: columns x − 1, x and x + 1, x + 2.
     #[inline(always)]
-    unsafe fn row(&self, i: S::I) -> ([S::F; 4], [S::F; 4]) {
-        let (lo, hi) = S::gather_pair::<2>(self.zp as *const i64, i - S::splat_i(1));
+    unsafe fn row(&self, i: S::I, off: isize) -> ([S::F; 4], [S::F; 4]) {
+        let p = self.zp.wrapping_offset(off - 2) as *const i64;
+        let (lo, hi) = S::gather_pair::<2>(p, i);
         (bytes::<S>(lo), bytes::<S>(hi))
     }
 
-    /// u8 grids: the z-paired copy's 32 bits at element `i`, i.e. voxels
-    /// `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1, z + 1)` of its row.
+    /// u8 grids: the z-paired copy's 32 bits at element `i`, `off` bytes
+    /// on, i.e. voxels `(x, z)`, `(x, z + 1)`, `(x + 1, z)`,
+    /// `(x + 1, z + 1)` of its row.
     #[inline(always)]
-    unsafe fn quad(&self, i: S::I) -> [S::F; 4] {
-        bytes::<S>(S::gather::<2>(self.zp as *const i32, i))
+    unsafe fn quad(&self, i: S::I, off: isize) -> [S::F; 4] {
+        let p = self.zp.wrapping_offset(off) as *const i32;
+        bytes::<S>(S::gather::<2>(p, i))
     }
 
     /// The difference of the trilinear values of the cells at elements
@@ -401,20 +415,20 @@ impl<S: Simd> Vol<S> {
     /// loads a lane where the six cells take twelve).
     #[inline(always)]
     unsafe fn gradient_u8(&self, base: S::I, f: [S::F; 3]) -> [S::F; 3] {
-        let (sy, sz) = (self.sy, self.sz);
+        let [_, sy, sz] = self.zp_step;
         // Columns x − 1, x (`l`) and x + 1, x + 2 (`h`) of rows y, y + 1.
-        let (l0, h0) = self.row(base);
-        let (l1, h1) = self.row(base + sy);
+        let (l0, h0) = self.row(base, 0);
+        let (l1, h1) = self.row(base, sy);
         let (m0, m1) = (mid::<S>(l0, h0), mid::<S>(l1, h1));
         let gx = diff::<S>(cell_of::<S>(h0, h1), cell_of::<S>(l0, l1), f);
         let gy = diff::<S>(
-            cell_of::<S>(m1, self.quad(base + sy + sy)),
-            cell_of::<S>(self.quad(base - sy), m0),
+            cell_of::<S>(m1, self.quad(base, 2 * sy)),
+            cell_of::<S>(self.quad(base, -sy), m0),
             f,
         );
         let gz = diff::<S>(
-            cell_of::<S>(self.quad(base + sz), self.quad(base + sz + sy)),
-            cell_of::<S>(self.quad(base - sz), self.quad(base - sz + sy)),
+            cell_of::<S>(self.quad(base, sz), self.quad(base, sz + sy)),
+            cell_of::<S>(self.quad(base, -sz), self.quad(base, sy - sz)),
             f,
         );
         let hs = self.half_scale;
