@@ -78,7 +78,8 @@ pub(super) trait Simd: Copy {
     /// their high 32 bits.
     unsafe fn gather_pair<const SCALE: i32>(p: *const i64, idx: Self::I) -> (Self::I, Self::I);
     /// The four channels of rows `i4 / 4` of a table of `[f32; 4]` rows
-    /// (`i4`: float offsets), one 128-bit load per lane and a transpose.
+    /// (`i4`: float offsets, none negative), one 128-bit load per lane and a
+    /// transpose.
     unsafe fn rows(table: *const f32, i4: Self::I) -> [Self::F; 4];
 
     /// `N` floats from `p` (unaligned).

@@ -50,10 +50,10 @@ unsafe fn pairs(p: *const i64, ix: &[i32; 16], a: usize, scale: i32) -> __m512i 
 /// offsets), one per 128-bit lane.
 #[inline(always)]
 unsafe fn quad(table: *const f32, ix: &[i32; 16], a: usize) -> __m512 {
-    let v = _mm512_castps128_ps512(_mm_loadu_ps(table.add(ix[a] as usize)));
-    let v = _mm512_insertf32x4::<1>(v, _mm_loadu_ps(table.add(ix[a + 4] as usize)));
-    let v = _mm512_insertf32x4::<2>(v, _mm_loadu_ps(table.add(ix[a + 8] as usize)));
-    _mm512_insertf32x4::<3>(v, _mm_loadu_ps(table.add(ix[a + 12] as usize)))
+    let v = _mm512_castps128_ps512(_mm_loadu_ps(table.add(ix[a] as u32 as usize)));
+    let v = _mm512_insertf32x4::<1>(v, _mm_loadu_ps(table.add(ix[a + 4] as u32 as usize)));
+    let v = _mm512_insertf32x4::<2>(v, _mm_loadu_ps(table.add(ix[a + 8] as u32 as usize)));
+    _mm512_insertf32x4::<3>(v, _mm_loadu_ps(table.add(ix[a + 12] as u32 as usize)))
 }
 
 /// The lanes `i` of the 32 floats of `a` then `b`. (A function, not a

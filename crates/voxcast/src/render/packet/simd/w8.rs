@@ -303,14 +303,14 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
             // Each lane's row in one 16-byte load, then transposed.
             let ix = Self::store_i(i4);
             let r: [__m128; 8] = [
-                _mm_loadu_ps(table.add(ix[0] as usize)),
-                _mm_loadu_ps(table.add(ix[1] as usize)),
-                _mm_loadu_ps(table.add(ix[2] as usize)),
-                _mm_loadu_ps(table.add(ix[3] as usize)),
-                _mm_loadu_ps(table.add(ix[4] as usize)),
-                _mm_loadu_ps(table.add(ix[5] as usize)),
-                _mm_loadu_ps(table.add(ix[6] as usize)),
-                _mm_loadu_ps(table.add(ix[7] as usize)),
+                _mm_loadu_ps(table.add(ix[0] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[1] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[2] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[3] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[4] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[5] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[6] as u32 as usize)),
+                _mm_loadu_ps(table.add(ix[7] as u32 as usize)),
             ];
             let a0 = _mm256_set_m128(r[4], r[0]);
             let a1 = _mm256_set_m128(r[5], r[1]);
