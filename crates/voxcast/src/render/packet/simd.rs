@@ -71,11 +71,12 @@ pub(super) trait Simd: Copy {
     unsafe fn count(a: Self::I, m: Self::M) -> Self::I;
     /// The lanes of `a` above zero.
     unsafe fn positive(a: Self::I) -> Self::M;
-    /// 32-bit loads at byte offsets `idx · SCALE` from `p`.
+    /// 32-bit loads at byte offsets `idx · SCALE` from `p` (which need not
+    /// point into the data itself: only the loads' addresses must).
     unsafe fn gather<const SCALE: i32>(p: *const i32, idx: Self::I) -> Self::I;
     unsafe fn gather_f<const SCALE: i32>(p: *const f32, idx: Self::I) -> Self::F;
-    /// 64-bit loads at byte offsets `idx · SCALE` from `p`: their low and
-    /// their high 32 bits.
+    /// 64-bit loads at byte offsets `idx · SCALE` from `p` (as for
+    /// [`Simd::gather`]): their low and their high 32 bits.
     unsafe fn gather_pair<const SCALE: i32>(p: *const i64, idx: Self::I) -> (Self::I, Self::I);
     /// The four channels of rows `i4 / 4` of a table of `[f32; 4]` rows
     /// (`i4`: float offsets, none negative), one 128-bit load per lane and a

@@ -199,10 +199,10 @@ pub(super) struct Vol<S: Simd> {
     last: [S::I; 3],
     sy: S::I,
     sz: S::I,
-    /// The z-paired copy's bytes from one row (`[dy, dz]`) or, for f32,
-    /// one column (`dx`) to the next: the fetches of one cell or one
-    /// gradient offset the copy's pointer, not the lanes' indices, so
-    /// the loads' width takes each lane's index out of its vector once.
+    /// The z-paired copy's bytes from one column, row and slice to the
+    /// next (`[dx, dy, dz]`): the fetches of one cell or one gradient
+    /// offset the copy's pointer, not the lanes' indices, so the loads'
+    /// width takes each lane's index out of its vector once.
     zp_step: [isize; 3],
     dimx: S::I,
     dimy: S::I,

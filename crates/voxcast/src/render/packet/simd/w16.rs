@@ -41,8 +41,9 @@ const CEIL: i32 = 0x0A;
 #[inline(always)]
 unsafe fn pairs(p: *const i64, ix: &[i32; 16], a: usize, scale: i32) -> __m512i {
     let b = p as *const u8;
-    let at =
-        |k: usize| (b.offset(ix[a + k] as isize * scale as isize) as *const i64).read_unaligned();
+    let at = |k: usize| {
+        (b.wrapping_offset(ix[a + k] as isize * scale as isize) as *const i64).read_unaligned()
+    };
     _mm512_setr_epi64(at(0), at(1), at(2), at(3), at(4), at(5), at(6), at(7))
 }
 
@@ -222,7 +223,7 @@ impl<const LOADS: bool> Simd for W16<LOADS> {
             let ix = Self::store_i(idx);
             let b = p as *const u8;
             let at = |k: usize| {
-                (b.offset(ix[k] as isize * SCALE as isize) as *const i32).read_unaligned()
+                (b.wrapping_offset(ix[k] as isize * SCALE as isize) as *const i32).read_unaligned()
             };
             return I16(_mm512_setr_epi32(
                 at(0),

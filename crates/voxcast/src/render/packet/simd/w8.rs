@@ -261,7 +261,7 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
         if LOADS {
             let ix = Self::store_i(idx);
             let b = p as *const u8;
-            let at = |k: usize| b.offset(ix[k] as isize * SCALE as isize) as *const i32;
+            let at = |k: usize| b.wrapping_offset(ix[k] as isize * SCALE as isize) as *const i32;
             return I8(_mm256_setr_epi32(
                 at(0).read_unaligned(),
                 at(1).read_unaligned(),
