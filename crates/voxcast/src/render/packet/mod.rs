@@ -778,6 +778,8 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 }
 
 #[cfg(target_arch = "x86_64")]
+mod fetch;
+#[cfg(target_arch = "x86_64")]
 mod lanes;
 #[cfg(target_arch = "x86_64")]
 mod shadow;

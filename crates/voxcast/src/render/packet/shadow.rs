@@ -7,8 +7,8 @@
 //!
 //! [`march_tau`]: crate::render::surface::march_tau
 
+use super::fetch::Vol;
 use super::simd::{Simd, W16, W8};
-use super::vector::Vol;
 use super::{Packets, Runs, LANES};
 use crate::render::surface::ShadowMarch;
 use crate::transfer::LUT_SIZE;

@@ -70,10 +70,10 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 #[cfg(target_arch = "x86_64")]
 mod vector {
     use super::super::super::stochastic::interval_random;
+    use super::super::fetch::Skips;
     use super::super::mc::Draws;
     use super::super::simd::{Simd, W16, W8};
     use super::super::tail::Taker;
-    use super::super::vector::Skips;
     use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use crate::volume::Voxel;

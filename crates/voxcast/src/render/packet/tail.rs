@@ -4,9 +4,10 @@
 //! own positions (`threshold`, `stratified`, `mc`): a sample over its own
 //! stretch, and front-to-back compositing.
 
+use super::fetch::Vol;
 use super::shade::{Deferred, Light};
 use super::simd::Simd;
-use super::vector::{shade_deferred, Vol};
+use super::vector::shade_deferred;
 use super::vwalk::exp;
 use super::{Lane, Packets, Runs, State};
 use crate::transfer::LUT_SIZE;

@@ -75,10 +75,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
 /// The vector loop (x86-64 only, as the packets).
 #[cfg(target_arch = "x86_64")]
 mod vector {
+    use super::super::fetch::{Skips, Vol};
     use super::super::shade::{Deferred, Light, Slots};
     use super::super::simd::{Simd, W16, W8};
     use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
-    use super::super::vector::{queue_slots, shade_deferred, Skips, Vol};
+    use super::super::vector::{queue_slots, shade_deferred};
     use super::super::vwalk::Rays;
     use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
