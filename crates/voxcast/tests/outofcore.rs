@@ -300,6 +300,44 @@ fn packets_skip_the_empty_cells_of_a_brick_and_a_warm_renderer_keeps_their_range
 }
 
 #[test]
+fn a_warm_renderer_keeps_its_skip_maps_only_while_the_transfer_function_stays() {
+    // A warm renderer keeps each brick's skip map for the transfer function
+    // of the frame before. Shifting the window down shows cells the first
+    // one hid: a map kept across the change would skip them. Each frame
+    // must be a fresh renderer's, pixel for pixel and sample for sample.
+    let vol = voxcast::builtin::open("demo").unwrap();
+    let tf = TransferFunction::auto(&vol);
+    let [w0, w1] = tf.window_for(&vol, None);
+    let shifted = [w0 - 0.5 * (w1 - w0), w1 - 0.5 * (w1 - w0)];
+    let src = MemorySource::new(vol.clone(), 0, [24, 20, 32]).unwrap();
+    let warm = OutOfCore::new(&src, level0(64 << 20));
+    let cam = camera(1.0, Projection::Perspective);
+    let no = AtomicBool::new(false);
+    let mut p = params(96, false);
+    p.jitter = false;
+    let fresh = |window: [f32; 2]| {
+        let ooc = OutOfCore::new(&src, level0(64 << 20));
+        ooc.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap()
+    };
+    let mut samples = Vec::new();
+    for window in [[w0, w1], shifted, [w0, w1], shifted] {
+        let (img, stats, _) = warm.render(&tf, window, &cam, &p, &|_, _| {}, &no).unwrap();
+        let (want, want_stats, _) = fresh(window);
+        assert_eq!(
+            img.pixels, want.pixels,
+            "window {window:?}: the warm frame differs"
+        );
+        assert_eq!(stats.samples, want_stats.samples, "window {window:?}");
+        samples.push(stats.samples);
+    }
+    // The shift changes what is visible, so the test can tell.
+    assert_ne!(
+        samples[0], samples[1],
+        "the two windows march the same samples"
+    );
+}
+
+#[test]
 fn cells_of_zeros_are_skipped_under_a_map_whose_opacity_rises_from_zero() {
     // A blob in a box of exact zeros, under the cloud map (opacity
     // proportional to density from 0): the zeros' cells are transparent.

@@ -373,7 +373,9 @@ fn march_rows<T: Stored>(
             .map(|row| {
                 let mut n = RowCount::default();
                 for p in &mut row[x0 as usize..x1 as usize] {
-                    march::march(&f, p, &mut n);
+                    if let Some(span) = march::span(&f, p) {
+                        march::march(&f, p, span, &mut n);
+                    }
                 }
                 n
             })
@@ -428,9 +430,14 @@ fn march_rows<T: Stored>(
             let mut lanes = [None; packet::LANES];
             let mut next = [0u32; packet::LANES];
             let mut acc = [Vec4::ZERO; packet::LANES];
+            let mut spans = [None; packet::LANES];
             for (i, p) in group.iter().enumerate() {
-                (lanes[i], next[i]) = march::lane(&f, p).map_or((None, 0), |(l, n)| (Some(l), n));
-                acc[i] = p.finish();
+                spans[i] = march::span(&f, p);
+                if let Some(span) = spans[i] {
+                    (lanes[i], next[i]) =
+                        march::lane(&f, p, span).map_or((None, 0), |(l, n)| (Some(l), n));
+                    acc[i] = p.finish();
+                }
             }
             if lanes.iter().any(Option::is_some) {
                 let mut count = [[0u32; 3]; packet::LANES];
@@ -452,8 +459,10 @@ fn march_rows<T: Stored>(
                     }
                 }
             }
-            for p in group.iter_mut() {
-                march::march(&f, p, &mut n);
+            for (p, span) in group.iter_mut().zip(spans) {
+                if let Some(span) = span {
+                    march::march(&f, p, span, &mut n);
+                }
             }
         }
         n

@@ -25,6 +25,8 @@ pub(super) struct Px {
     /// The ray in the base level's voxel coordinates (`t` in world units).
     pub o: Vec3,
     pub d: Vec3,
+    /// `1 / d`, for the bricks' slab tests.
+    pub inv_d: Vec3,
     /// Towards the eye (world), for shading.
     pub view: Vec3,
     /// Start of the sample grid and end of the last sample's stretch.
@@ -47,6 +49,7 @@ impl Px {
             a: 0.0,
             o,
             d,
+            inv_d: Vec3::ONE / d,
             view,
             t0: 0.0,
             t_end: 0.0,
@@ -55,7 +58,7 @@ impl Px {
             live: false,
             terminated: false,
         };
-        if let Some((t_in, t_out)) = intersect_box(o, Vec3::ONE / d, lo, hi) {
+        if let Some((t_in, t_out)) = intersect_box(o, p.inv_d, lo, hi) {
             let t0 = t_in + jitter * st;
             let n = ((t_out - t0) / st).ceil();
             if n >= 1.0 {
@@ -107,17 +110,27 @@ pub(super) struct RowCount {
     pub terminated: u64,
 }
 
+/// Where the ray of `px` crosses the brick's own box (`None`: it does
+/// not, or the ray is done); [`lane`] and [`march`] start from it.
+#[inline]
+pub(super) fn span<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<(f32, f32)> {
+    if !px.live {
+        return None;
+    }
+    intersect_box(px.o, px.inv_d, f.own_lo, f.own_hi)
+}
+
 /// The packets' lane for the samples of `px` in the brick but the ray's
 /// last (which the scalar [`march`] composites with its stretch): the
 /// brick's own box clipped as [`march`] clips it, in the brick's voxel
 /// coordinates, stepping the level's step from the ray's next sample; and
 /// the ray's next sample once the lane is marched. `None` when there is no
-/// such sample.
-pub(super) fn lane<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<(Lane, u32)> {
-    if !px.live {
-        return None;
-    }
-    let (ta, tb) = intersect_box(px.o, Vec3::ONE / px.d, f.own_lo, f.own_hi)?;
+/// such sample. `(ta, tb)`: the ray's [`span`] in the brick.
+pub(super) fn lane<T: Voxel>(
+    f: &BrickFrame<'_, T>,
+    px: &Px,
+    (ta, tb): (f32, f32),
+) -> Option<(Lane, u32)> {
     let first = ((ta - px.t0) / f.st).ceil().max(0.0);
     let k0 = px.next.max(first.min(u32::MAX as f32) as u32);
     // The first sample at or past the brick's exit, by the scalar loop's
@@ -156,15 +169,18 @@ pub(super) fn lane<T: Voxel>(f: &BrickFrame<'_, T>, px: &Px) -> Option<(Lane, u3
     })
 }
 
-/// Marches the samples of `px` that fall in the brick.
+/// Marches the samples of `px` that fall in the brick, whose [`span`] is
+/// `(ta, tb)` (the packets may have ended the ray since).
 #[inline]
-pub(super) fn march<T: Voxel>(f: &BrickFrame<'_, T>, px: &mut Px, n: &mut RowCount) {
+pub(super) fn march<T: Voxel>(
+    f: &BrickFrame<'_, T>,
+    px: &mut Px,
+    (ta, tb): (f32, f32),
+    n: &mut RowCount,
+) {
     if !px.live {
         return;
     }
-    let Some((ta, tb)) = intersect_box(px.o, Vec3::ONE / px.d, f.own_lo, f.own_hi) else {
-        return;
-    };
     let first = ((ta - px.t0) / f.st).ceil().max(0.0);
     let mut k = px.next.max(first.min(u32::MAX as f32) as u32);
     let (o, d) = (f.geo.to_level(px.o), f.geo.dir_to_level(px.d));

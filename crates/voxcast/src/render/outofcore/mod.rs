@@ -250,7 +250,8 @@ pub struct OutOfCore<'s> {
     cache: ChunkCache<'s>,
     /// Bricks' cell ranges, kept from frame to frame within a sixteenth of
     /// the budget: a warm frame flags a brick's empty cells without reading
-    /// its voxels again.
+    /// its voxels again; and, while the transfer function's visible ranges
+    /// stay, the flags themselves.
     cells: std::sync::Mutex<CellStore>,
     /// What the store knows of each chunk, per level, asked once: a store
     /// answers with a file-system call per chunk.
@@ -258,11 +259,43 @@ pub struct OutOfCore<'s> {
 }
 
 /// The cell ranges of bricks marched so far, by level and the voxel box
-/// the brick reads, and the bytes they hold.
+/// the brick reads; their cells' skip distances and visible boxes under
+/// the transfer function of `seen`; and the bytes all these hold.
 #[derive(Default)]
 struct CellStore {
-    map: std::collections::HashMap<(usize, [u64; 3], [u64; 3]), std::sync::Arc<CellRanges>>,
+    map: std::collections::HashMap<BrickKey, std::sync::Arc<CellRanges>>,
+    flags: std::collections::HashMap<BrickKey, std::sync::Arc<BrickFlags>>,
+    /// What decides which cells may show (the window's bits and, per
+    /// table entry, the first entry from it on with opacity), for the
+    /// `flags` held, and a count of its changes (a frame keeps and reads
+    /// flags only while the count is the one it started with).
+    seen: Option<([u32; 2], Vec<usize>)>,
+    generation: u64,
     bytes: u64,
+}
+
+/// A brick: its level and the voxel box it reads.
+type BrickKey = (usize, [u64; 3], [u64; 3]);
+
+/// A brick's cells' skip distances and the box around its visible cells
+/// (`None`: no cell may show), from [`CellRanges::flags`].
+type BrickFlags = (Vec<i32>, Option<(Vec3, Vec3)>);
+
+impl CellStore {
+    /// Keeps `v` (of `bytes`) in `map` if the store stays within `cap`.
+    fn keep<V>(
+        bytes: &mut u64,
+        map: &mut std::collections::HashMap<BrickKey, std::sync::Arc<V>>,
+        key: BrickKey,
+        v: &std::sync::Arc<V>,
+        size: u64,
+        cap: u64,
+    ) {
+        if *bytes + size <= cap {
+            *bytes += size;
+            map.insert(key, v.clone());
+        }
+    }
 }
 
 impl<'s> OutOfCore<'s> {
@@ -549,6 +582,17 @@ impl<'s> OutOfCore<'s> {
         for i in (0..LUT_SIZE).rev() {
             shown[i] = if q0[i][3] > 0.0 { i } else { shown[i + 1] };
         }
+        let generation = self.cells.lock().map_or(u64::MAX, |mut store| {
+            let seen = (window.map(f32::to_bits), shown.clone());
+            if store.seen.as_ref() != Some(&seen) {
+                let held: u64 = store.flags.values().map(|f| flag_bytes(f)).sum();
+                store.bytes -= held;
+                store.flags.clear();
+                store.seen = Some(seen);
+                store.generation += 1;
+            }
+            store.generation
+        });
         let visible = |lo: f32, hi: f32| {
             // A hair of margin for the interpolation's rounding.
             const EPS: f32 = 1e-5;
@@ -610,7 +654,6 @@ impl<'s> OutOfCore<'s> {
                 });
             }
             let mut buf = BrickBuf::new(ty);
-            let mut flags = Vec::new();
             for (j, b) in plan.iter().enumerate() {
                 cursor.store(j, Ordering::Release);
                 if cancel.load(Ordering::Relaxed) {
@@ -656,25 +699,41 @@ impl<'s> OutOfCore<'s> {
                 // transparent: the march skips them, and the packets skip
                 // the empty cells inside it.
                 let key = (b.lidx, dbox.0, dbox.1);
-                let kept = self
-                    .cells
-                    .lock()
-                    .ok()
-                    .and_then(|c| c.map.get(&key).cloned());
+                let cap = ooc.budget / 16;
+                let (kept, kept_flags) = self.cells.lock().map_or((None, None), |c| {
+                    let flags = c.flags.get(&key).filter(|_| c.generation == generation);
+                    (c.map.get(&key).cloned(), flags.cloned())
+                });
                 let cell_ranges = match kept {
                     Some(c) => c,
                     None => {
                         let c = std::sync::Arc::new(buf.cell_ranges(dims));
                         if let Ok(mut store) = self.cells.lock() {
-                            if store.bytes + c.bytes() <= ooc.budget / 16 {
-                                store.bytes += c.bytes();
-                                store.map.insert(key, c.clone());
-                            }
+                            let store = &mut *store;
+                            let size = c.bytes();
+                            CellStore::keep(&mut store.bytes, &mut store.map, key, &c, size, cap);
                         }
                         c
                     }
                 };
-                let Some((vlo, vhi)) = cell_ranges.flags(&visible, &mut flags) else {
+                let flags = match kept_flags {
+                    Some(f) => f,
+                    None => {
+                        let mut v = Vec::new();
+                        let vbox = cell_ranges.flags(&visible, &mut v);
+                        let f = std::sync::Arc::new((v, vbox));
+                        if let Ok(mut store) = self.cells.lock() {
+                            let store = &mut *store;
+                            let size = flag_bytes(&f);
+                            if store.generation == generation {
+                                let (bytes, map) = (&mut store.bytes, &mut store.flags);
+                                CellStore::keep(bytes, map, key, &f, size, cap);
+                            }
+                        }
+                        f
+                    }
+                };
+                let Some((vlo, vhi)) = flags.1 else {
                     stats.empty += 1;
                     progress(j + 1, plan.len());
                     continue;
@@ -716,7 +775,7 @@ impl<'s> OutOfCore<'s> {
                     packets,
                     cells: params
                         .skip_empty
-                        .then_some((&flags[..], cell_ranges.counts)),
+                        .then_some((&flags.0[..], cell_ranges.counts)),
                 };
                 let c = buf.march(&frame, dims, &mut px, w, b.rect);
                 counts_total.samples += c.samples;
@@ -746,6 +805,11 @@ impl<'s> OutOfCore<'s> {
         };
         Ok((pixels, rs, stats))
     }
+}
+
+/// Bytes a brick's flags hold.
+fn flag_bytes(f: &BrickFlags) -> u64 {
+    (f.0.len() * std::mem::size_of::<i32>()) as u64
 }
 
 /// A box `[lo, hi)` of chunk indices of one level.
