@@ -248,23 +248,21 @@ impl CellRanges {
         (self.ranges.len() * std::mem::size_of::<(f32, f32)>()) as u64
     }
 
-    /// Each cell's skip distance in `flags` (0 where something in it may
-    /// show; see [`crate::render::packet::skip_distances`]) and the box
-    /// (voxel coordinates of the buffer) around the cells that may show;
+    /// Each cell's signed skip distance (negative where something in it
+    /// may show; see [`crate::render::packet::skip_distances`]) and the box
+    /// (voxel coordinates of the buffer) around the cells that may show,
     /// `None` when none may.
     pub(super) fn flags(
         &self,
         visible: &impl Fn(f32, f32) -> bool,
-        flags: &mut Vec<i32>,
-    ) -> Option<(Vec3, Vec3)> {
+    ) -> (Vec<i32>, Option<(Vec3, Vec3)>) {
         let n = self.counts;
-        flags.clear();
-        flags.resize(self.ranges.len(), -1);
         let mut lo = [usize::MAX; 3];
         let mut hi = [0usize; 3];
+        let mut shows = vec![false; self.ranges.len()];
         for (i, &(mn, mx)) in self.ranges.iter().enumerate() {
             if mn <= mx && visible(mn, mx) {
-                flags[i] = 0;
+                shows[i] = true;
                 let c = [i % n[0], (i / n[0]) % n[1], i / (n[0] * n[1])];
                 for a in 0..3 {
                     lo[a] = lo[a].min(c[a]);
@@ -273,12 +271,12 @@ impl CellRanges {
             }
         }
         if lo[0] == usize::MAX {
-            return None;
+            return (Vec::new(), None);
         }
-        crate::render::packet::distances_in_place(flags, n);
         let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
         let h = Vec3::from(hi.map(|c| ((c + 1) * CELL) as f32));
-        Some((l, h))
+        let d = crate::render::packet::skip_distances(|i| !shows[i], n);
+        (d, Some((l, h)))
     }
 }
 

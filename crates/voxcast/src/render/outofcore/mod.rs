@@ -32,6 +32,7 @@
 
 mod brick;
 mod cache;
+mod cells;
 mod march;
 mod plan;
 
@@ -44,8 +45,9 @@ use crate::render::shading::BlinnPhong;
 use crate::render::{Method, Order, RenderParams, RenderStats};
 use crate::transfer::{srgb_to_linear, Lut, TransferFunction, LUT_SIZE};
 use crate::volume::{ChunkRange, ChunkedSource, Level};
-use brick::{BrickBuf, CellRanges, FrameArgs};
+use brick::{BrickBuf, FrameArgs};
 use cache::ChunkCache;
+use cells::CellStore;
 use glam::Vec3;
 use march::{Px, RowCount};
 use rayon::prelude::*;
@@ -256,46 +258,6 @@ pub struct OutOfCore<'s> {
     /// What the store knows of each chunk, per level, asked once: a store
     /// answers with a file-system call per chunk.
     ranges: std::sync::Mutex<std::collections::HashMap<usize, std::sync::Arc<Vec<ChunkRange>>>>,
-}
-
-/// The cell ranges of bricks marched so far, by level and the voxel box
-/// the brick reads; their cells' skip distances and visible boxes under
-/// the transfer function of `seen`; and the bytes all these hold.
-#[derive(Default)]
-struct CellStore {
-    map: std::collections::HashMap<BrickKey, std::sync::Arc<CellRanges>>,
-    flags: std::collections::HashMap<BrickKey, std::sync::Arc<BrickFlags>>,
-    /// What decides which cells may show (the window's bits and, per
-    /// table entry, the first entry from it on with opacity), for the
-    /// `flags` held, and a count of its changes (a frame keeps and reads
-    /// flags only while the count is the one it started with).
-    seen: Option<([u32; 2], Vec<usize>)>,
-    generation: u64,
-    bytes: u64,
-}
-
-/// A brick: its level and the voxel box it reads.
-type BrickKey = (usize, [u64; 3], [u64; 3]);
-
-/// A brick's cells' skip distances and the box around its visible cells
-/// (`None`: no cell may show), from [`CellRanges::flags`].
-type BrickFlags = (Vec<i32>, Option<(Vec3, Vec3)>);
-
-impl CellStore {
-    /// Keeps `v` (of `bytes`) in `map` if the store stays within `cap`.
-    fn keep<V>(
-        bytes: &mut u64,
-        map: &mut std::collections::HashMap<BrickKey, std::sync::Arc<V>>,
-        key: BrickKey,
-        v: &std::sync::Arc<V>,
-        size: u64,
-        cap: u64,
-    ) {
-        if *bytes + size <= cap {
-            *bytes += size;
-            map.insert(key, v.clone());
-        }
-    }
 }
 
 impl<'s> OutOfCore<'s> {
@@ -582,17 +544,7 @@ impl<'s> OutOfCore<'s> {
         for i in (0..LUT_SIZE).rev() {
             shown[i] = if q0[i][3] > 0.0 { i } else { shown[i + 1] };
         }
-        let generation = self.cells.lock().map_or(u64::MAX, |mut store| {
-            let seen = (window.map(f32::to_bits), shown.clone());
-            if store.seen.as_ref() != Some(&seen) {
-                let held: u64 = store.flags.values().map(|f| flag_bytes(f)).sum();
-                store.bytes -= held;
-                store.flags.clear();
-                store.seen = Some(seen);
-                store.generation += 1;
-            }
-            store.generation
-        });
+        let generation = CellStore::begin(&self.cells, window, &shown);
         let visible = |lo: f32, hi: f32| {
             // A hair of margin for the interpolation's rounding.
             const EPS: f32 = 1e-5;
@@ -698,41 +650,15 @@ impl<'s> OutOfCore<'s> {
                 // Samples outside the box around the brick's visible cells are
                 // transparent: the march skips them, and the packets skip
                 // the empty cells inside it.
-                let key = (b.lidx, dbox.0, dbox.1);
-                let cap = ooc.budget / 16;
-                let (kept, kept_flags) = self.cells.lock().map_or((None, None), |c| {
-                    let flags = c.flags.get(&key).filter(|_| c.generation == generation);
-                    (c.map.get(&key).cloned(), flags.cloned())
-                });
-                let cell_ranges = match kept {
-                    Some(c) => c,
-                    None => {
-                        let c = std::sync::Arc::new(buf.cell_ranges(dims));
-                        if let Ok(mut store) = self.cells.lock() {
-                            let store = &mut *store;
-                            let size = c.bytes();
-                            CellStore::keep(&mut store.bytes, &mut store.map, key, &c, size, cap);
-                        }
-                        c
-                    }
-                };
-                let flags = match kept_flags {
-                    Some(f) => f,
-                    None => {
-                        let mut v = Vec::new();
-                        let vbox = cell_ranges.flags(&visible, &mut v);
-                        let f = std::sync::Arc::new((v, vbox));
-                        if let Ok(mut store) = self.cells.lock() {
-                            let store = &mut *store;
-                            let size = flag_bytes(&f);
-                            if store.generation == generation {
-                                let (bytes, map) = (&mut store.bytes, &mut store.flags);
-                                CellStore::keep(bytes, map, key, &f, size, cap);
-                            }
-                        }
-                        f
-                    }
-                };
+                let (cell_ranges, flags) = CellStore::brick(
+                    &self.cells,
+                    (b.lidx, dbox),
+                    generation,
+                    ooc.budget / 16,
+                    &buf,
+                    dims,
+                    &visible,
+                );
                 let Some((vlo, vhi)) = flags.1 else {
                     stats.empty += 1;
                     progress(j + 1, plan.len());
@@ -805,11 +731,6 @@ impl<'s> OutOfCore<'s> {
         };
         Ok((pixels, rs, stats))
     }
-}
-
-/// Bytes a brick's flags hold.
-fn flag_bytes(f: &BrickFlags) -> u64 {
-    (f.0.len() * std::mem::size_of::<i32>()) as u64
 }
 
 /// A box `[lo, hi)` of chunk indices of one level.

@@ -42,7 +42,7 @@ pub(in crate::render) fn skip_distances(
 /// The empty blocks' distances of [`skip_distances`] in place: `d` holds
 /// 0 for a block that is not empty (which keeps it) and anything else for
 /// an empty one, and gets the distances.
-pub(in crate::render) fn distances_in_place(d: &mut [i32], counts: [usize; 3]) {
+fn distances_in_place(d: &mut [i32], counts: [usize; 3]) {
     for v in d.iter_mut().filter(|v| **v != 0) {
         *v = FAR;
     }

@@ -87,7 +87,7 @@ mod zpairs;
 use super::march::RunWalk;
 use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
-pub(in crate::render) use distance::{distances_in_place, skip_distances};
+pub(in crate::render) use distance::skip_distances;
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
@@ -127,8 +127,9 @@ pub(super) struct Packets<'a, T, R = ()> {
     pub jitter: Option<u64>,
     /// With skipping on, each block's skip distance: how far the empty
     /// space around an empty block reaches, and minus how far the visible
-    /// blocks around a visible one reach ([`skip_distances`]; 0 for every
-    /// visible block in a map of [`distances_in_place`]).
+    /// blocks around a visible one reach ([`skip_distances`]; a map may
+    /// also hold 0 for a visible block, whose lanes then ask again at their
+    /// next sample).
     pub empty: Option<&'a [i32]>,
     /// Blinn–Phong shading (an integer exponent, 0…64; see [`shades`]), or
     /// flat colour.
