@@ -233,12 +233,17 @@ fn fill_box<T: Stored>(
 /// Edge of the cells a brick is divided into for skipping, in voxels.
 const CELL: usize = 4;
 
+/// Cells along each axis of a brick of `dims` voxels.
+pub(super) fn cell_counts(dims: [usize; 3]) -> [usize; 3] {
+    dims.map(|v| v.div_ceil(CELL))
+}
+
 /// A brick's cells of [`CELL`]³ voxels and the range of the values a
 /// sample inside each may interpolate (its own voxels and the next layer on
 /// each axis). Independent of the transfer function, so a warm renderer
 /// keeps them from frame to frame (see `OutOfCore`).
 pub(super) struct CellRanges {
-    pub(super) counts: [usize; 3],
+    counts: [usize; 3],
     ranges: Vec<(f32, f32)>,
 }
 
@@ -291,7 +296,7 @@ fn span(it: impl Iterator<Item = (f32, f32)>) -> (f32, f32) {
 /// parallel over the slices, then y, then z, so each voxel is read about
 /// once.
 fn cell_ranges<T: Voxel>(data: &[T], d: [usize; 3]) -> CellRanges {
-    let n: [usize; 3] = d.map(|v| v.div_ceil(CELL));
+    let n = cell_counts(d);
     let reach = |c: usize, axis: usize| c * CELL..(c * CELL + CELL + 1).min(d[axis]);
     let mut rows = vec![(0.0f32, 0.0f32); n[0] * d[1] * d[2]];
     rows.par_chunks_mut(n[0] * d[1])

@@ -4,7 +4,7 @@
 //! and the box around its visible cells. Within a sixteenth of the budget,
 //! held beside the chunk cache.
 
-use super::brick::{BrickBuf, CellRanges};
+use super::brick::{cell_counts, BrickBuf, CellRanges};
 use glam::Vec3;
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -70,10 +70,11 @@ impl CellStore {
         })
     }
 
-    /// The cell ranges and flags of the brick `(lidx, dbox)` now in `buf`
-    /// (`dims` voxels), under `visible` — kept ones, or computed and kept
+    /// The cell counts and flags of the brick `(lidx, dbox)` now in `buf`
+    /// (`dims` voxels), under `visible`: kept flags, or flags computed
+    /// from the brick's cell ranges (kept ones, or computed) and kept
     /// within `cap` bytes (flags only while the store is at the frame's
-    /// `generation`).
+    /// `generation`). Ranges are computed only where flags must be.
     pub(super) fn brick(
         store: &Mutex<CellStore>,
         (lidx, dbox): (usize, ([u64; 3], [u64; 3])),
@@ -82,21 +83,21 @@ impl CellStore {
         buf: &BrickBuf,
         dims: [usize; 3],
         visible: &impl Fn(f32, f32) -> bool,
-    ) -> (Arc<CellRanges>, Arc<BrickFlags>) {
+    ) -> ([usize; 3], Arc<BrickFlags>) {
         let key = (lidx, dbox.0, dbox.1);
         let (kept, kept_flags) = store.lock().map_or((None, None), |s| {
             let flags = s.flags.get(&key).filter(|_| s.generation == generation);
             (s.ranges.get(&key).cloned(), flags.cloned())
         });
-        let ranges = kept.unwrap_or_else(|| {
-            let c = Arc::new(buf.cell_ranges(dims));
-            if let Ok(mut s) = store.lock() {
-                let s = &mut *s;
-                keep(&mut s.bytes, &mut s.ranges, key, &c, c.bytes(), cap);
-            }
-            c
-        });
         let flags = kept_flags.unwrap_or_else(|| {
+            let ranges = kept.unwrap_or_else(|| {
+                let c = Arc::new(buf.cell_ranges(dims));
+                if let Ok(mut s) = store.lock() {
+                    let s = &mut *s;
+                    keep(&mut s.bytes, &mut s.ranges, key, &c, c.bytes(), cap);
+                }
+                c
+            });
             let f = Arc::new(ranges.flags(visible));
             if let Ok(mut s) = store.lock() {
                 let s = &mut *s;
@@ -106,6 +107,6 @@ impl CellStore {
             }
             f
         });
-        (ranges, flags)
+        (cell_counts(dims), flags)
     }
 }

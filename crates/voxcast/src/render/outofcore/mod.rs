@@ -650,7 +650,7 @@ impl<'s> OutOfCore<'s> {
                 // Samples outside the box around the brick's visible cells are
                 // transparent: the march skips them, and the packets skip
                 // the empty cells inside it.
-                let (cell_ranges, flags) = CellStore::brick(
+                let (cell_counts, flags) = CellStore::brick(
                     &self.cells,
                     (b.lidx, dbox),
                     generation,
@@ -699,9 +699,7 @@ impl<'s> OutOfCore<'s> {
                     shading,
                     window,
                     packets,
-                    cells: params
-                        .skip_empty
-                        .then_some((&flags.0[..], cell_ranges.counts)),
+                    cells: params.skip_empty.then_some((&flags.0[..], cell_counts)),
                 };
                 let c = buf.march(&frame, dims, &mut px, w, b.rect);
                 counts_total.samples += c.samples;
