@@ -238,6 +238,15 @@ pub(super) fn cell_counts(dims: [usize; 3]) -> [usize; 3] {
     dims.map(|v| v.div_ceil(CELL))
 }
 
+/// A brick's cells' signed skip distances and the box (voxel coordinates
+/// of the buffer) around the cells that may show, from
+/// [`CellRanges::flags`].
+pub(super) struct BrickFlags {
+    pub(super) skip: Vec<i32>,
+    /// `None`: no cell may show.
+    pub(super) shown: Option<(Vec3, Vec3)>,
+}
+
 /// A brick's cells of [`CELL`]³ voxels and the range of the values a
 /// sample inside each may interpolate (its own voxels and the next layer on
 /// each axis). Independent of the transfer function, so a warm renderer
@@ -255,12 +264,8 @@ impl CellRanges {
 
     /// Each cell's signed skip distance (negative where something in it
     /// may show; see [`crate::render::packet::skip_distances`]) and the box
-    /// (voxel coordinates of the buffer) around the cells that may show,
-    /// `None` when none may.
-    pub(super) fn flags(
-        &self,
-        visible: &impl Fn(f32, f32) -> bool,
-    ) -> (Vec<i32>, Option<(Vec3, Vec3)>) {
+    /// around the cells that may show.
+    pub(super) fn flags(&self, visible: &impl Fn(f32, f32) -> bool) -> BrickFlags {
         let n = self.counts;
         let mut lo = [usize::MAX; 3];
         let mut hi = [0usize; 3];
@@ -276,12 +281,18 @@ impl CellRanges {
             }
         }
         if lo[0] == usize::MAX {
-            return (Vec::new(), None);
+            return BrickFlags {
+                skip: Vec::new(),
+                shown: None,
+            };
         }
         let l = Vec3::from(lo.map(|c| (c * CELL) as f32));
         let h = Vec3::from(hi.map(|c| ((c + 1) * CELL) as f32));
         let d = crate::render::packet::skip_distances(|i| !shows[i], n);
-        (d, Some((l, h)))
+        BrickFlags {
+            skip: d,
+            shown: Some((l, h)),
+        }
     }
 }
 

@@ -4,17 +4,12 @@
 //! and the box around its visible cells. Within a sixteenth of the budget,
 //! held beside the chunk cache.
 
-use super::brick::{cell_counts, BrickBuf, CellRanges};
-use glam::Vec3;
+use super::brick::{cell_counts, BrickBuf, BrickFlags, CellRanges};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 /// A brick: its level and the voxel box it reads.
 type BrickKey = (usize, [u64; 3], [u64; 3]);
-
-/// A brick's cells' signed skip distances and the box around its visible
-/// cells (`None`: no cell may show), from [`CellRanges::flags`].
-pub(super) type BrickFlags = (Vec<i32>, Option<(Vec3, Vec3)>);
 
 /// The cell ranges of bricks marched so far, by level and the voxel box
 /// the brick reads; their flags under the transfer function of `seen`;
@@ -49,7 +44,7 @@ fn keep<V>(
 
 /// Bytes a brick's flags hold.
 fn flag_bytes(f: &BrickFlags) -> u64 {
-    (f.0.len() * std::mem::size_of::<i32>()) as u64
+    (f.skip.len() * std::mem::size_of::<i32>()) as u64
 }
 
 impl CellStore {

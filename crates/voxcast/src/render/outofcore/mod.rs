@@ -659,7 +659,7 @@ impl<'s> OutOfCore<'s> {
                     dims,
                     &visible,
                 );
-                let Some((vlo, vhi)) = flags.1 else {
+                let Some((vlo, vhi)) = flags.shown else {
                     stats.empty += 1;
                     progress(j + 1, plan.len());
                     continue;
@@ -699,7 +699,7 @@ impl<'s> OutOfCore<'s> {
                     shading,
                     window,
                     packets,
-                    cells: params.skip_empty.then_some((&flags.0[..], cell_counts)),
+                    cells: params.skip_empty.then_some((&flags.skip[..], cell_counts)),
                 };
                 let c = buf.march(&frame, dims, &mut px, w, b.rect);
                 counts_total.samples += c.samples;
