@@ -97,6 +97,17 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
     let skip = has_flag(F_SKIP);
     let unit = P.unit;
     var w = walker_new(o, d, t_in, t_out);
+    // Grouped reuse (steps.rs `RunWalk::next`): the groups of a block go on
+    // from the last block's where it continues it (the same level, cap and
+    // emptiness, its first sample after the other's last, nothing skipped
+    // between); elsewhere the block's first sample starts a group.
+    var last: Eval;
+    last.entry = -1;
+    var prev_on = false;
+    var prev_j = 0;
+    var prev_cap = 0u;
+    var prev_empty = false;
+    var prev_k1 = 0u;
     loop {
         if w.t >= w.t_out {
             break;
@@ -125,7 +136,9 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
                     let tm = 0.5 * (ta + tb);
                     let x = P.k_ref / (k * t_out / max(tm, 1e-6));
                     j = clamp(i32(round_away(log2(x))), P.level_lo, P.level_hi);
-                    cap = u32(clamp(floor(x / exp2(f32(j))), 1.0, 3.0));
+                    // steps.rs `group_cap`: within two coarsest steps.
+                    let reach = min(x, exp2(f32(P.level_hi + 1)));
+                    cap = u32(clamp(floor(reach / exp2(f32(j))), 1.0, 3.0));
                 }
             } else {
                 j = level(max_grad[st.index], t_out, 0.5 * (ta + tb));
@@ -149,14 +162,19 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
             }
         }
         if is_empty && skip {
+            prev_on = false;
             continue;
         }
-        var last: Eval;
-        last.entry = -1;
+        let goes_on = prev_on && j == prev_j && cap == prev_cap && is_empty == prev_empty && k0 == prev_k1;
+        prev_on = true;
+        prev_j = j;
+        prev_cap = cap;
+        prev_empty = is_empty;
+        prev_k1 = k1;
         for (var k = k0; k < k1; k += 1u) {
             let t = t0 + f32(k) * s;
             n_samples += 1u;
-            let head = !grouped || k == k0 || (k % min(group_size(t, t_out), cap)) == 0u;
+            let head = !grouped || (k == k0 && !goes_on) || (k % min(group_size(t, t_out), cap)) == 0u;
             if head {
                 last = evaluate(o + d * t);
             }

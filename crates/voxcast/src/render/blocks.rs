@@ -412,15 +412,17 @@ mod tests {
         let p = crate::render::RenderParams::default();
         let levels = p.adaptive.levels(p.step);
         let k_ref = p.adaptive.tolerance / p.step;
-        assert_eq!(
-            classified_level(k[0], k_ref, 1.5, levels),
-            (levels.1, u32::MAX)
-        );
+        assert_eq!(classified_level(k[0], k_ref, 1.5, levels), (levels.1, 3));
         let (j, cap) = classified_level(k[2], k_ref, 1.5, levels);
         assert_eq!((j, cap), (levels.0, 1), "k {}", k[2]);
         // A block with a tenth of the tolerance's change per base step gets
         // a coarser step and may group (step 2^j, groups of ⌊x/2^j⌋).
         let (j, cap) = classified_level(0.1 * k_ref, k_ref, 1.0, levels);
+        assert_eq!((j, cap), (levels.1, 2));
+        // However little it changes, a group spans at most two of the
+        // coarsest steps (`x` = 100 base steps would allow three).
+        assert_eq!(levels.1, 2);
+        let (j, cap) = classified_level(0.01 * k_ref, k_ref, 1.0, levels);
         assert_eq!((j, cap), (levels.1, 2));
     }
     use crate::volume::Volume;

@@ -149,10 +149,12 @@ pub(super) trait Marcher<T: Voxel>: Sync {
 /// How a value is reconstructed and classified at a sample (DESIGN.md
 /// axis 2). A fresh copy per ray.
 pub(super) trait Sampler<T: Voxel>: Copy + Sync {
-    /// Whether a march must treat every block as its own interval (S0's
-    /// groups start afresh at each block, so that skipping an empty block
-    /// changes no pixel); otherwise blocks of one step merge.
-    const PER_BLOCK: bool;
+    /// Whether a march's runs keep S0's groups: groups start afresh at
+    /// each run, so blocks of one step merge into a run only where they
+    /// share their group cap — never an empty block with one that shows,
+    /// so that skipping an empty block changes no pixel. Otherwise all
+    /// blocks of one step merge.
+    const GROUPS: bool;
     /// Prepares for a ray leaving the volume at `t_out`.
     fn begin(&mut self, t_out: f32);
     /// The next sample starts a new group (after a skip).

@@ -143,7 +143,7 @@ pub(super) fn evaluate_premul<T: Voxel, Sh: Shade>(
 pub(super) struct Trilinear<Sh>(pub Sh);
 
 impl<T: Voxel, Sh: Shade> Sampler<T> for Trilinear<Sh> {
-    const PER_BLOCK: bool = false;
+    const GROUPS: bool = false;
     #[inline(always)]
     fn begin(&mut self, _: f32) {}
     #[inline(always)]
@@ -207,7 +207,7 @@ impl<Sh> Grouped<Sh> {
 }
 
 impl<T: Voxel, Sh: Shade> Sampler<T> for Grouped<Sh> {
-    const PER_BLOCK: bool = true;
+    const GROUPS: bool = true;
     #[inline(always)]
     fn begin(&mut self, t_out: f32) {
         self.t_out = t_out;

@@ -18,7 +18,7 @@ mod threshold;
 #[cfg(test)]
 pub(super) use steps::{classified_level, round_log2};
 pub(super) use steps::{
-    BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
+    exp2i, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
 };
 pub(super) use threshold::Threshold;
 

@@ -113,7 +113,7 @@ pub(in crate::render) fn vector_params<'a, L: Level>(
         k_ref: steps.k_ref,
         k,
         skip_empty,
-        per_block: grouped,
+        groups: grouped,
     })
 }
 

@@ -20,7 +20,7 @@
 use super::simd::Simd;
 use super::walk::RunRegs;
 use super::{Packets, Runs, State, WalkStart, LANES};
-use crate::render::march::VRule;
+use crate::render::march::{exp2i, VRule};
 use crate::volume::Voxel;
 
 /// What the vector walk reads of a step-per-block march.
@@ -36,9 +36,13 @@ pub(in crate::render) struct VParams<'a> {
     /// the block is empty under the transfer function: one gather per
     /// block.
     pub k: &'a [f32],
-    /// Skipping empty blocks; a run per block (grouped reuse).
+    /// Skipping empty blocks.
     pub skip_empty: bool,
-    pub per_block: bool,
+    /// Runs keep S0's groups (grouped reuse): blocks merge only where
+    /// they share their group cap ([`Sampler::GROUPS`]).
+    ///
+    /// [`Sampler::GROUPS`]: crate::render::ray::Sampler::GROUPS
+    pub groups: bool,
 }
 
 /// The lanes' 3D DDA over the block grid in vector registers
@@ -381,17 +385,19 @@ impl<'a, S: Simd> VWalk<'a, S> {
         ))
     }
 
-    /// The level `j` (a float) and group cap (at most 3) of the lanes'
-    /// blocks with `k` (see [`VParams::k`]) crossed over `ta..tb`, `e` the
-    /// empty ones: [`crate::render::march::Level::level`] of the rule.
+    /// The level `j` (a float) and group cap (1–3; 4 for the empty
+    /// blocks, as the scalar walk's `u32::MAX`) of the lanes' blocks with
+    /// `k` (see [`VParams::k`]) crossed over `ta..tb`, `e` the empty ones:
+    /// [`crate::render::march::Level::level`] of the rule.
     #[inline(always)]
     unsafe fn rule(&self, k: S::F, ta: S::F, tb: S::F, e: S::M) -> (S::F, S::F) {
         let (hi, three) = (S::splat(self.p.hi as f32), S::splat(3.0));
+        let four = S::splat(4.0);
         let tm = S::max(S::splat(0.5) * (ta + tb), S::splat(1e-6));
         let k_ref = S::splat(self.p.k_ref);
         let zero = S::splat(0.0);
         let (j, cap) = match self.p.rule {
-            VRule::Fixed => return (zero, three),
+            VRule::Fixed => return (zero, S::blend(e, three, four)),
             VRule::Max(_) => {
                 let f = k * self.w.t_out / tm;
                 (S::blend(S::gt(f, zero), hi, self.level(k_ref / f)), three)
@@ -399,9 +405,10 @@ impl<'a, S: Simd> VWalk<'a, S> {
             VRule::Classified(_) => {
                 let x = k_ref / (k * (self.w.t_out / tm));
                 let j = self.level(x);
-                // `x / 2^j`, exactly.
+                // `group_cap`: `min(x, 2^(hi+1)) / 2^j`, exactly.
+                let reach = S::min(x, S::splat(exp2i(self.p.hi + 1)));
                 let cap = S::min(
-                    S::max(S::floor(x * pow2::<S>(zero - j)), S::splat(1.0)),
+                    S::max(S::floor(reach * pow2::<S>(zero - j)), S::splat(1.0)),
                     three,
                 );
                 let none = S::ge(zero, k);
@@ -410,7 +417,7 @@ impl<'a, S: Simd> VWalk<'a, S> {
             // `new`'s callers check.
             VRule::Scalar => unreachable!(),
         };
-        (S::blend(e, j, hi), S::blend(e, cap, three))
+        (S::blend(e, j, hi), S::blend(e, cap, four))
     }
 
     /// The step (world units) of level indices `li`.
@@ -550,15 +557,15 @@ impl<'a, S: Simd> VWalk<'a, S> {
             let n1 = S::max(S::ceil(qb * r), zero);
             go = S::and(go, S::gt(n1, n0));
             let blk: Run<S> = [li, n0, n1, cap];
-            // The block extends the current run.
-            if !self.p.per_block {
-                let merge = S::and(
-                    S::but(S::and(go, self.cur_ok), skip),
-                    S::and(S::eq(self.cur[0], li), S::eq(self.cur[2], n0)),
-                );
-                self.cur[2] = S::blend(merge, self.cur[2], n1);
-                go = S::but(go, merge);
+            // The block extends the current run (with groups, one of its
+            // cap).
+            let mut same = S::and(S::eq(self.cur[0], li), S::eq(self.cur[2], n0));
+            if self.p.groups {
+                same = S::and(same, S::eq(self.cur[3], cap));
             }
+            let merge = S::and(S::but(S::and(go, self.cur_ok), skip), same);
+            self.cur[2] = S::blend(merge, self.cur[2], n1);
+            go = S::but(go, merge);
             // Or ends it: the run is handed out, the block held.
             let hand = S::and(go, self.cur_ok);
             for (c, b) in blk.into_iter().enumerate() {
