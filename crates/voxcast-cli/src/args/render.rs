@@ -45,7 +45,7 @@ pub struct RenderArgs {
     /// Sampling method along rays: uniform (equal steps), adaptive (S0's
     /// block-adaptive steps from what the transfer function shows: a step per
     /// block that keeps the change of classified opacity and colour per
-    /// sample under [render.adaptive] tolerance, 0.15 by default),
+    /// sample under [render.adaptive] tolerance, 0.3 by default),
     /// adaptive-s0 (S0 exactly: the step from the raw derivative at the
     /// block's midpoint and the distance), adaptive-max (S0's formula from the
     /// block's largest derivative) or

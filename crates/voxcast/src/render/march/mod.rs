@@ -232,7 +232,7 @@ impl Default for AdaptiveParams {
 }
 
 /// The default [`AdaptiveParams::tolerance`].
-pub const DEFAULT_TOLERANCE: f32 = 0.15;
+pub const DEFAULT_TOLERANCE: f32 = 0.3;
 
 impl AdaptiveParams {
     /// The range of power-of-two levels `j` (step = base · 2^j) allowed.
