@@ -29,7 +29,8 @@ pub(in crate::render) trait Runs<T: Voxel>: Sync {
     fn tables(&self) -> &[[f32; 4]];
     /// The step of level index `li` (world units).
     fn step(&self, li: usize) -> f32;
-    /// Grouped reuse (a run per block, groups restart with each run).
+    /// Grouped reuse (runs merge only blocks of one cap, groups restart
+    /// with each run).
     fn grouped(&self) -> bool;
     /// The lane's next run (see [`RunWalk::next`]), compositing its
     /// pending sample into `c`.
