@@ -74,7 +74,7 @@ pub struct Renderer<'v> {
     derived: std::sync::Mutex<Vec<(usize, Arc<Derived>)>>,
     /// Opaque geometry rays stop at.
     geometry: Option<Arc<crate::geometry::Geometry>>,
-    /// The SIMD packets' z-paired copy of a u8 or f32 volume
+    /// The SIMD packets' z-paired copy of the volume
     /// ([`packet::ZPairs`]), built on the first render that uses it.
     z_pairs: std::sync::OnceLock<packet::ZPairs>,
 }

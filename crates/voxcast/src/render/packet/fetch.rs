@@ -1,5 +1,5 @@
 //! The grid as the packets' lanes read it, written once over [`Simd`]:
-//! the trilinear fetches (from the z-paired copy for u8 and f32), the
+//! the trilinear fetches (from the volume's z-paired copy), the
 //! central-difference gradients, and the block exits of empty-space
 //! skipping ([`Skips`]).
 
@@ -7,47 +7,6 @@ use super::simd::Simd;
 use super::vwalk::Rays;
 use super::{Packets, Runs};
 use crate::volume::{Voxel, VoxelKind};
-
-/// The values at `idx` and `idx + 1` (element indices) of `data`, as
-/// floats: one 32-bit gather for both where the type allows.
-///
-/// # Safety
-/// The width's instructions; every `idx + 1` < `len` (elements), and
-/// `len` bytes ≥ 4.
-#[inline(always)]
-unsafe fn pair<S: Simd, T: Voxel>(data: *const u8, len_bytes: i32, idx: S::I) -> (S::F, S::F) {
-    match T::KIND {
-        VoxelKind::U8 => {
-            // Read 4 bytes at `idx`, moved back near the end of the
-            // data so the read stays inside; shift the pair down.
-            let addr = S::min_i(idx, S::splat_i(len_bytes - 4));
-            let sh = S::sll(idx - addr, 3);
-            let g = S::gather::<1>(data as *const i32, addr);
-            let m = S::splat_i(0xff);
-            let lo = S::and_i(S::srlv(g, sh), m);
-            let hi = S::and_i(S::srlv(g, sh + S::splat_i(8)), m);
-            (S::to_f(lo), S::to_f(hi))
-        }
-        VoxelKind::U16 => {
-            let g = S::gather::<2>(data as *const i32, idx);
-            let lo = S::and_i(g, S::splat_i(0xffff));
-            let hi = S::srl(g, 16);
-            (S::to_f(lo), S::to_f(hi))
-        }
-        VoxelKind::I16 => {
-            let g = S::gather::<2>(data as *const i32, idx);
-            let lo = S::sra(S::sll(g, 16), 16);
-            let hi = S::sra(g, 16);
-            (S::to_f(lo), S::to_f(hi))
-        }
-        VoxelKind::F32 => {
-            let p = data as *const f32;
-            let lo = S::gather_f::<4>(p, idx);
-            let hi = S::gather_f::<4>(p, idx + S::splat_i(1));
-            (lo, hi)
-        }
-    }
-}
 
 /// `a + (b − a)·t` without fusing, as the scalar path computes it.
 #[inline(always)]
@@ -186,15 +145,10 @@ impl<S: Simd> Skips<S> {
 
 /// The grid as the lanes read it (see `Grid::sample`).
 pub(super) struct Vol<S: Simd> {
-    data: *const u8,
-    /// u8 and f32 grids: the z-paired copy (`super::ZPairs`; null for
-    /// other types).
+    /// The grid's z-paired copy (`super::ZPairs`).
     zp: *const u8,
-    len_bytes: i32,
     max: [S::F; 3],
     last: [S::I; 3],
-    sy: S::I,
-    sz: S::I,
     /// The z-paired copy's bytes from one column, row and slice to the
     /// next (`[dx, dy, dz]`): the fetches of one cell or one gradient
     /// offset the copy's pointer, not the lanes' indices, so the loads'
@@ -220,25 +174,26 @@ impl<S: Simd> Vol<S> {
     #[inline(always)]
     pub(super) unsafe fn of<T: Voxel, R: Runs<T>>(pk: &Packets<'_, T, R>) -> Self {
         let f = pk.f;
-        let (data, step, last, max) = f.grid.layout();
+        let (_, step, last, max) = f.grid.layout();
         let (scale, offset) = f.grid.scale_offset();
         let dims = f.grid.dims();
         Vol {
-            data: data.as_ptr() as *const u8,
             zp: pk.z_pairs.ptr(T::KIND),
-            len_bytes: std::mem::size_of_val(data) as i32,
             max: [S::splat(max.x), S::splat(max.y), S::splat(max.z)],
             last: [
                 S::splat_i(last[0] as i32),
                 S::splat_i(last[1] as i32),
                 S::splat_i(last[2] as i32),
             ],
-            sy: S::splat_i(step[1] as i32),
             zp_step: {
-                let e = if T::KIND == VoxelKind::F32 { 8 } else { 2 };
+                // The bytes of a pair.
+                let e = match T::KIND {
+                    VoxelKind::U8 => 2,
+                    VoxelKind::U16 | VoxelKind::I16 => 4,
+                    VoxelKind::F32 => 8,
+                };
                 [e, e * step[1] as isize, e * step[2] as isize]
             },
-            sz: S::splat_i(step[2] as i32),
             dimx: S::splat_i(dims[0] as i32),
             dimy: S::splat_i(dims[1] as i32),
             inner: S::splat_i((1 + dims[0] + dims[0] * dims[1]) as i32),
@@ -288,36 +243,62 @@ impl<S: Simd> Vol<S> {
     /// is element `base`: `c[x + 2y + 4z]`.
     #[inline(always)]
     unsafe fn corners<T: Voxel>(&self, base: S::I) -> [S::F; 8] {
-        if T::KIND == VoxelKind::U8 {
-            // Two gathers: rows y and y + 1 of the z-paired copy.
-            let dy = self.zp_step[1];
-            cell_of::<S>(self.quad(base, 0), self.quad(base, dy))
-        } else if T::KIND == VoxelKind::F32 {
-            // Rows y and y + 1 of the z-paired copy: a 64-bit gather at
-            // x and one at x + 1 each.
-            let [dx, dy, _] = self.zp_step;
-            let (c000, c001) = self.z_pair(base, 0);
-            let (c100, c101) = self.z_pair(base, dx);
-            let (c010, c011) = self.z_pair(base, dy);
-            let (c110, c111) = self.z_pair(base, dy + dx);
-            [c000, c100, c010, c110, c001, c101, c011, c111]
-        } else {
-            let (d, n) = (self.data, self.len_bytes);
-            let (c000, c100) = pair::<S, T>(d, n, base);
-            let (c010, c110) = pair::<S, T>(d, n, base + self.sy);
-            let (c001, c101) = pair::<S, T>(d, n, base + self.sz);
-            let (c011, c111) = pair::<S, T>(d, n, base + self.sy + self.sz);
-            [c000, c100, c010, c110, c001, c101, c011, c111]
+        // Rows y and y + 1 of the z-paired copy, one load (or gather) a
+        // lane each: 4 bytes (u8), 8 (u16, i16) or 16 (f32).
+        let dy = self.zp_step[1];
+        cell_of::<S>(
+            self.paired_quad::<T>(base, 0),
+            self.paired_quad::<T>(base, dy),
+        )
+    }
+
+    /// f32 grids: voxels `(x, z)`, `(x, z + 1)`, `(x + 1, z)`, `(x + 1,
+    /// z + 1)` at element `i` of the z-paired copy, `off` bytes on: 16
+    /// contiguous bytes, fetched as a table's rows are (one 128-bit load a
+    /// lane and a transpose, or 64-bit gathers; the grid is below 1 GiB,
+    /// so `2i` fits).
+    #[inline(always)]
+    unsafe fn f32_row(&self, i: S::I, off: isize) -> [S::F; 4] {
+        S::rows(self.zp.wrapping_offset(off) as *const f32, i + i)
+    }
+
+    /// Voxels x, x + 1 of the row at element `i`, `off` bytes on, both z
+    /// of the pair ([`Vol::quad`], [`Vol::f32_row`], [`Vol::h16_row`]).
+    #[inline(always)]
+    unsafe fn paired_quad<T: Voxel>(&self, i: S::I, off: isize) -> [S::F; 4] {
+        match T::KIND {
+            VoxelKind::U8 => self.quad(i, off),
+            VoxelKind::F32 => self.f32_row(i, off),
+            VoxelKind::U16 | VoxelKind::I16 => self.h16_row::<T>(i, off),
         }
     }
 
-    /// f32 grids: voxels `(x, z)` and `(x, z + 1)` at element `i` of the
-    /// z-paired copy, `off` bytes on, in one 64-bit gather.
+    /// u16 and i16 grids: voxels `(x, z)`, `(x, z + 1)`, `(x + 1, z)`,
+    /// `(x + 1, z + 1)` at element `i` of the z-paired copy, `off` bytes
+    /// on: 8 contiguous bytes, one 64-bit load (or gather) a lane.
     #[inline(always)]
-    unsafe fn z_pair(&self, i: S::I, off: isize) -> (S::F, S::F) {
+    unsafe fn h16_row<T: Voxel>(&self, i: S::I, off: isize) -> [S::F; 4] {
         let p = self.zp.wrapping_offset(off) as *const i64;
-        let (lo, hi) = S::gather_pair::<8>(p, i);
-        (S::of_bits(lo), S::of_bits(hi))
+        let (lo, hi) = S::gather_pair::<4>(p, i);
+        let [a, b] = halves::<S, T>(lo);
+        let [c, d] = halves::<S, T>(hi);
+        [a, b, c, d]
+    }
+
+    /// Columns x − 1, x and x + 1, x + 2 of the row at element `i`, `off`
+    /// bytes on (u8: one 64-bit load, [`Vol::row`]; others two of
+    /// [`Vol::paired_quad`]).
+    #[inline(always)]
+    unsafe fn paired_row<T: Voxel>(&self, i: S::I, off: isize) -> ([S::F; 4], [S::F; 4]) {
+        if T::KIND == VoxelKind::U8 {
+            self.row(i, off)
+        } else {
+            let dx = self.zp_step[0];
+            (
+                self.paired_quad::<T>(i, off - dx),
+                self.paired_quad::<T>(i, off + dx),
+            )
+        }
     }
 
     /// u8 grids: the z-paired copy's 64 bits at element `i − 1`, `off`
@@ -336,16 +317,6 @@ impl<S: Simd> Vol<S> {
     unsafe fn quad(&self, i: S::I, off: isize) -> [S::F; 4] {
         let p = self.zp.wrapping_offset(off) as *const i32;
         bytes::<S>(S::gather::<2>(p, i))
-    }
-
-    /// The difference of the trilinear values of the cells at elements
-    /// `a` and `b`, at the same fractions `f`, as the trilinear value of
-    /// the corners' differences: one interpolation instead of two (the
-    /// same value to a rounding; the differences themselves are exact for
-    /// integer voxels).
-    #[inline(always)]
-    unsafe fn cell_diff<T: Voxel>(&self, a: S::I, b: S::I, f: [S::F; 3]) -> S::F {
-        diff::<S>(self.corners::<T>(a), self.corners::<T>(b), f)
     }
 
     /// The normalised trilinear value at `p` (voxel coordinates),
@@ -393,38 +364,36 @@ impl<S: Simd> Vol<S> {
         // Lanes outside `m` read cell (1, 1, 1), inside as well.
         let (base, f) = self.locate(p);
         let base = S::blend_i(m, self.inner, base);
-        let (dx, dy, dz) = (S::splat_i(1), self.sy, self.sz);
-        if T::KIND == VoxelKind::U8 {
-            return self.gradient_u8(base, f);
-        }
-        let gx = self.cell_diff::<T>(base + dx, base - dx, f);
-        let gy = self.cell_diff::<T>(base + dy, base - dy, f);
-        let gz = self.cell_diff::<T>(base + dz, base - dz, f);
-        let hs = self.half_scale;
-        [gx * hs, gy * hs, gz * hs]
+        self.gradient_paired::<T>(base, f)
     }
 
-    /// [`Vol::gradient_cells`]'s differences for u8 grids, the same
-    /// values in fewer loads: rows y and y + 1 of the z-paired copy at
-    /// x − 1 … x + 2 are one 64-bit load each and hold both cells x ± 1
-    /// and the cell's own middle, which the y differences reuse (eight
-    /// loads a lane where the six cells take twelve).
+    /// [`Vol::gradient_cells`]'s differences from the z-paired copy, the
+    /// same values in fewer loads: rows y and y + 1 at x − 1 … x + 2 hold
+    /// both cells x ± 1 and the cell's own middle, which the y differences
+    /// reuse (u8: one 64-bit load a row, eight loads a lane where the six
+    /// cells take twelve; u16, i16 and f32: two loads a row, ten).
     #[inline(always)]
-    unsafe fn gradient_u8(&self, base: S::I, f: [S::F; 3]) -> [S::F; 3] {
+    unsafe fn gradient_paired<T: Voxel>(&self, base: S::I, f: [S::F; 3]) -> [S::F; 3] {
         let [_, sy, sz] = self.zp_step;
         // Columns x − 1, x (`l`) and x + 1, x + 2 (`h`) of rows y, y + 1.
-        let (l0, h0) = self.row(base, 0);
-        let (l1, h1) = self.row(base, sy);
+        let (l0, h0) = self.paired_row::<T>(base, 0);
+        let (l1, h1) = self.paired_row::<T>(base, sy);
         let (m0, m1) = (mid::<S>(l0, h0), mid::<S>(l1, h1));
         let gx = diff::<S>(cell_of::<S>(h0, h1), cell_of::<S>(l0, l1), f);
         let gy = diff::<S>(
-            cell_of::<S>(m1, self.quad(base, 2 * sy)),
-            cell_of::<S>(self.quad(base, -sy), m0),
+            cell_of::<S>(m1, self.paired_quad::<T>(base, 2 * sy)),
+            cell_of::<S>(self.paired_quad::<T>(base, -sy), m0),
             f,
         );
         let gz = diff::<S>(
-            cell_of::<S>(self.quad(base, sz), self.quad(base, sz + sy)),
-            cell_of::<S>(self.quad(base, -sz), self.quad(base, sy - sz)),
+            cell_of::<S>(
+                self.paired_quad::<T>(base, sz),
+                self.paired_quad::<T>(base, sz + sy),
+            ),
+            cell_of::<S>(
+                self.paired_quad::<T>(base, -sz),
+                self.paired_quad::<T>(base, sy - sz),
+            ),
             f,
         );
         let hs = self.half_scale;
@@ -442,6 +411,20 @@ unsafe fn bytes<S: Simd>(g: S::I) -> [S::F; 4] {
         S::to_f(S::and_i(S::srl(g, 16), m)),
         S::to_f(S::srl(g, 24)),
     ]
+}
+
+/// The two 16-bit halves of each lane of `g`, low first, as floats:
+/// unsigned for u16 grids, signed for i16.
+#[inline(always)]
+unsafe fn halves<S: Simd, T: Voxel>(g: S::I) -> [S::F; 2] {
+    if T::KIND == VoxelKind::I16 {
+        [S::to_f(S::sra(S::sll(g, 16), 16)), S::to_f(S::sra(g, 16))]
+    } else {
+        [
+            S::to_f(S::and_i(g, S::splat_i(0xffff))),
+            S::to_f(S::srl(g, 16)),
+        ]
+    }
 }
 
 /// The middle two columns of [`Vol::row`]'s four.

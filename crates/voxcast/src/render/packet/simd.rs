@@ -63,8 +63,6 @@ pub(super) trait Simd: Copy {
     unsafe fn srl(a: Self::I, k: i32) -> Self::I;
     unsafe fn sll(a: Self::I, k: i32) -> Self::I;
     unsafe fn sra(a: Self::I, k: i32) -> Self::I;
-    /// Shifts each lane right by its own count.
-    unsafe fn srlv(a: Self::I, k: Self::I) -> Self::I;
     unsafe fn blend_i(m: Self::M, f: Self::I, t: Self::I) -> Self::I;
     unsafe fn keep_i(m: Self::M, v: Self::I) -> Self::I;
     /// `a + 1` in the lanes of `m`.

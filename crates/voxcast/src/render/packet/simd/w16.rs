@@ -51,10 +51,19 @@ unsafe fn pairs(p: *const i64, ix: &[i32; 16], a: usize, scale: i32) -> __m512i 
 /// offsets), one per 128-bit lane.
 #[inline(always)]
 unsafe fn quad(table: *const f32, ix: &[i32; 16], a: usize) -> __m512 {
-    let v = _mm512_castps128_ps512(_mm_loadu_ps(table.add(ix[a] as u32 as usize)));
-    let v = _mm512_insertf32x4::<1>(v, _mm_loadu_ps(table.add(ix[a + 4] as u32 as usize)));
-    let v = _mm512_insertf32x4::<2>(v, _mm_loadu_ps(table.add(ix[a + 8] as u32 as usize)));
-    _mm512_insertf32x4::<3>(v, _mm_loadu_ps(table.add(ix[a + 12] as u32 as usize)))
+    let v = _mm512_castps128_ps512(_mm_loadu_ps(table.wrapping_add(ix[a] as u32 as usize)));
+    let v = _mm512_insertf32x4::<1>(
+        v,
+        _mm_loadu_ps(table.wrapping_add(ix[a + 4] as u32 as usize)),
+    );
+    let v = _mm512_insertf32x4::<2>(
+        v,
+        _mm_loadu_ps(table.wrapping_add(ix[a + 8] as u32 as usize)),
+    );
+    _mm512_insertf32x4::<3>(
+        v,
+        _mm_loadu_ps(table.wrapping_add(ix[a + 12] as u32 as usize)),
+    )
 }
 
 /// The lanes `i` of the 32 floats of `a` then `b`. (A function, not a
@@ -196,10 +205,6 @@ impl<const LOADS: bool> Simd for W16<LOADS> {
     #[inline(always)]
     unsafe fn sra(a: I16, k: i32) -> I16 {
         I16(_mm512_sra_epi32(a.0, _mm_cvtsi32_si128(k)))
-    }
-    #[inline(always)]
-    unsafe fn srlv(a: I16, k: I16) -> I16 {
-        I16(_mm512_srlv_epi32(a.0, k.0))
     }
     #[inline(always)]
     unsafe fn blend_i(m: __mmask16, f: I16, t: I16) -> I16 {

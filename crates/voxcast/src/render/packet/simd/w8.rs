@@ -232,10 +232,6 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
         I8(_mm256_sra_epi32(a.0, _mm_cvtsi32_si128(k)))
     }
     #[inline(always)]
-    unsafe fn srlv(a: I8, k: I8) -> I8 {
-        I8(_mm256_srlv_epi32(a.0, k.0))
-    }
-    #[inline(always)]
     unsafe fn blend_i(m: __m256, f: I8, t: I8) -> I8 {
         I8(_mm256_castps_si256(_mm256_blendv_ps(
             _mm256_castsi256_ps(f.0),
@@ -303,14 +299,14 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
             // Each lane's row in one 16-byte load, then transposed.
             let ix = Self::store_i(i4);
             let r: [__m128; 8] = [
-                _mm_loadu_ps(table.add(ix[0] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[1] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[2] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[3] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[4] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[5] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[6] as u32 as usize)),
-                _mm_loadu_ps(table.add(ix[7] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[0] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[1] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[2] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[3] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[4] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[5] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[6] as u32 as usize)),
+                _mm_loadu_ps(table.wrapping_add(ix[7] as u32 as usize)),
             ];
             let a0 = _mm256_set_m128(r[4], r[0]);
             let a1 = _mm256_set_m128(r[5], r[1]);
