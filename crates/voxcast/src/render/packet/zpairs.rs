@@ -18,9 +18,10 @@ pub(in crate::render) enum ZPairs {
     /// slice pairs with itself), so a row's four corners lie in 16
     /// contiguous bytes: a trilinear fetch reads two rows, two cache lines,
     /// where the grid itself spreads its eight corners over four (two
-    /// slices, two rows each), and four 64-bit gathers instead of eight
-    /// 32-bit ones. [`super::fits`] keeps the volumes the packets march
-    /// below 1 GiB, so the copy stays below 2 GiB.
+    /// slices, two rows each), and one 16-byte load a row (or two 64-bit
+    /// gathers) instead of eight 32-bit gathers. [`super::fits`] keeps the
+    /// volumes the packets march below 1 GiB, so the copy stays below
+    /// 2 GiB.
     F32(Vec<[f32; 2]>),
     /// u16 and i16: per voxel the bits of `v(x, y, z)` (low half) and
     /// `v(x, y, z + 1)` (high half) in one `u32` (the last slice pairs
