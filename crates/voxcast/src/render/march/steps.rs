@@ -19,12 +19,16 @@ use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::Vec3;
 
+/// S0's largest group of samples that share one value (grouped reuse):
+/// the cap where a rule sets none.
+const MAX_GROUP: u32 = 3;
+
 /// How the step level of a block is chosen: `j` in `step·2^j`, and the
 /// largest group of samples grouped reuse may share one value in (S0's
-/// groups of 1–3 are capped by it; 3 where the rule sets no cap). Asked
-/// only for blocks that are not empty: those take the longest step (a
-/// `FIXED` rule's one step) and the cap `u32::MAX`, which no block that
-/// shows has, so that a grouped run never spans an empty block and a
+/// groups of 1–3 are capped by it; [`MAX_GROUP`] where the rule sets no
+/// cap). Asked only for blocks that are not empty: those take the longest
+/// step (a `FIXED` rule's one step) and the cap `u32::MAX`, which no block
+/// that shows has, so that a grouped run never spans an empty block and a
 /// visible one.
 pub(in crate::render) trait Level: Sync {
     /// One level everywhere (no per-block choice).
@@ -77,7 +81,7 @@ impl Level for Fixed {
         _: (usize, f32, f32),
         _: &mut Counters,
     ) -> (i32, u32) {
-        (0, 3)
+        (0, MAX_GROUP)
     }
 }
 
@@ -99,7 +103,7 @@ impl Level for Midpoint {
         let g = f.grid.gradient(seg.o + seg.d * tm);
         n.interpolations += 6;
         let k = g.x.abs().max(g.y.abs()).max(g.z.abs());
-        (st.level_of(k, seg.t_out, tm), 3)
+        (st.level_of(k, seg.t_out, tm), MAX_GROUP)
     }
 }
 
@@ -119,7 +123,10 @@ impl Level for BlockMax<'_> {
         (b, ta, tb): (usize, f32, f32),
         _: &mut Counters,
     ) -> (i32, u32) {
-        (st.level_of(self.0[b], seg.t_out, 0.5 * (ta + tb)), 3)
+        (
+            st.level_of(self.0[b], seg.t_out, 0.5 * (ta + tb)),
+            MAX_GROUP,
+        )
     }
 }
 
@@ -166,7 +173,7 @@ pub(in crate::render) fn classified_level(
     (lo, hi): (i32, i32),
 ) -> (i32, u32) {
     if k <= 0.0 {
-        return (hi, 3);
+        return (hi, MAX_GROUP);
     }
     // The allowed step, in base steps.
     let x = k_ref / (k * distance);
@@ -187,7 +194,9 @@ pub(in crate::render) fn classified_level(
 /// at 44 with two).
 #[inline(always)]
 fn group_cap(x: f32, j: i32, hi: i32) -> u32 {
-    (x.min(exp2i(hi + 1)) / exp2i(j)).floor().clamp(1.0, 3.0) as u32
+    (x.min(exp2i(hi + 1)) / exp2i(j))
+        .floor()
+        .clamp(1.0, MAX_GROUP as f32) as u32
 }
 
 /// `round(log₂ x)` for `x > 0`, exactly, from its bits: the exponent, plus
