@@ -98,16 +98,16 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
     let unit = P.unit;
     var w = walker_new(o, d, t_in, t_out);
     // Grouped reuse (steps.rs `RunWalk::next`): the groups of a block go on
-    // from the last block's where it continues it (the same level, cap and
-    // emptiness, its first sample after the other's last, nothing skipped
-    // between); elsewhere the block's first sample starts a group.
+    // from the last block's where it continues it (the same level and cap,
+    // its first sample the one after the other's last, nothing skipped
+    // between: `prev_k1` is NONE after a skip); elsewhere the block's first
+    // sample starts a group.
     var last: Eval;
     last.entry = -1;
-    var prev_on = false;
+    let NONE = 0xffffffffu;
     var prev_j = 0;
     var prev_cap = 0u;
-    var prev_empty = false;
-    var prev_k1 = 0u;
+    var prev_k1 = NONE;
     loop {
         if w.t >= w.t_out {
             break;
@@ -144,6 +144,12 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
                 j = level(max_grad[st.index], t_out, 0.5 * (ta + tb));
             }
         }
+        if is_empty {
+            // A cap no visible block has (the vector walk's 4, the scalar
+            // walk's u32::MAX): a group never spans an empty block and a
+            // visible one, so skipping changes no pixel.
+            cap = 4u;
+        }
         let ratio = P.step * exp2(f32(j));
         let s = ratio * unit;
         let n0 = max(ceil((ta - t0) / s), 0.0);
@@ -162,14 +168,12 @@ fn march_blocks(o: vec3<f32>, d: vec3<f32>, t0: f32, t_in: f32, t_out: f32) -> b
             }
         }
         if is_empty && skip {
-            prev_on = false;
+            prev_k1 = NONE;
             continue;
         }
-        let goes_on = prev_on && j == prev_j && cap == prev_cap && is_empty == prev_empty && k0 == prev_k1;
-        prev_on = true;
+        let goes_on = j == prev_j && cap == prev_cap && k0 == prev_k1;
         prev_j = j;
         prev_cap = cap;
-        prev_empty = is_empty;
         prev_k1 = k1;
         for (var k = k0; k < k1; k += 1u) {
             let t = t0 + f32(k) * s;
