@@ -644,3 +644,60 @@ fn packets_handle_thin_volumes() {
         }
     }
 }
+
+/// A renderer keeps what it derived from the last transfer function and
+/// step (the table, the blocks' emptiness, the levels' tables, `adaptive`'s
+/// change per block) for the renders after it: a render with another
+/// transfer function or step must not be served them. Each render of one
+/// renderer, through changes of either and back, gives the bytes of a
+/// fresh renderer's.
+#[test]
+fn a_kept_renderer_redraws_what_a_fresh_one_draws() {
+    let (vol, tf) = scene();
+    let s = vol.stats();
+    let window = [s.min, s.max];
+    // Another transfer function: opaque where the first is faint, and an
+    // empty stretch where it is not, so emptiness and levels change too.
+    let tf2 = TransferFunction {
+        color: vec![[0.0, 0.9, 0.2, 0.1], [1.0, 0.2, 0.4, 0.9]],
+        opacity: vec![[0.0, 0.0], [0.1, 0.6], [0.5, 0.0], [1.0, 0.0]],
+        window: None,
+    };
+    let kept = Renderer::new(&vol, window).unwrap();
+    let mut changed = 0;
+    let mut last: Option<Image> = None;
+    for method in [
+        Method::Adaptive,
+        Method::Uniform,
+        Method::Threshold,
+        Method::Lod,
+    ] {
+        for (tf, step) in [(&tf, 0.5), (&tf2, 0.5), (&tf2, 1.0), (&tf, 0.5)] {
+            let p = RenderParams {
+                width: 40,
+                height: 32,
+                method,
+                step,
+                grouped: method == Method::Adaptive,
+                ..Default::default()
+            };
+            let a = draw(&kept, tf, &p);
+            let b = draw(&Renderer::new(&vol, window).unwrap(), tf, &p);
+            assert!(
+                a.pixels == b.pixels,
+                "{} step {step}: the kept renderer drew another picture",
+                method.name()
+            );
+            // The changes change the picture (the test would pass on a
+            // renderer that ignored them only if they did not).
+            if last.as_ref().is_some_and(|l| l.pixels != a.pixels) {
+                changed += 1;
+            }
+            last = Some(a);
+        }
+    }
+    assert!(
+        changed >= 12,
+        "only {changed} of 15 changes changed the picture"
+    );
+}

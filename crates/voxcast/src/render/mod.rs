@@ -25,6 +25,7 @@ pub mod sortlast;
 pub mod stats;
 mod stochastic;
 mod surface;
+mod tf_tables;
 mod tiles;
 mod trace;
 
@@ -91,6 +92,9 @@ struct Derived {
     /// The packets' skip distances ([`packet::skip_distances`]) of the
     /// last emptiness they were asked for.
     skip: std::sync::Mutex<Option<SkipCache>>,
+    /// The tables of the last transfer functions and steps rendered
+    /// ([`tf_tables::TfTables`]).
+    tf_tables: std::sync::Mutex<Vec<Arc<tf_tables::TfTables>>>,
 }
 
 /// Block emptiness and the skip distances it gives.
@@ -207,6 +211,7 @@ impl<'v> Renderer<'v> {
             octree: std::sync::OnceLock::new(),
             pdf: std::sync::Mutex::new(None),
             skip: std::sync::Mutex::new(None),
+            tf_tables: std::sync::Mutex::new(Vec::new()),
         });
         list.push((size, d.clone()));
         d
@@ -263,16 +268,11 @@ impl<'v> Renderer<'v> {
             } else {
                 &[]
             };
-        let empty = derived.blocks.empty_flags(tf);
-        let lut = Lut::new(tf, params.step);
+        let tft = derived.tf_tables(tf, params.step);
         // Each adaptive method's `k` per block.
-        let block_k: std::borrow::Cow<'_, [f32]> = match params.method {
-            Method::Adaptive => derived
-                .blocks
-                .classified_change(&lut, max_gradient, &empty, params.shade_weight())
-                .into(),
-            _ => max_gradient.into(),
-        };
+        let change = (params.method == Method::Adaptive)
+            .then(|| tft.change(&derived.blocks, max_gradient, params.shade_weight()));
+        let block_k = change.as_deref().map_or(max_gradient, |k| k.as_slice());
         if params.method.is_physical() {
             // The path tracer's medium has no surfaces yet: refuse rather
             // than draw the smoke through walls the user asked for.
@@ -315,7 +315,8 @@ impl<'v> Renderer<'v> {
             z_pairs: &self.z_pairs,
             pdf: pdf.as_slice(),
             volume,
-            lut,
+            tft: &tft,
+            lut: &tft.lut,
             cam,
             params,
             unit,
@@ -323,7 +324,7 @@ impl<'v> Renderer<'v> {
             cancel,
             blocks: &derived.blocks,
             derived: &derived,
-            empty,
+            empty: &tft.empty,
             block_k,
             surface: self.geometry.as_deref().map(|g| surface::SurfaceCtx {
                 geometry: g,
@@ -355,13 +356,15 @@ struct Job<'a> {
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     derived: &'a Derived,
-    empty: Vec<bool>,
+    /// What the transfer function and step give (kept across renders).
+    tft: &'a tf_tables::TfTables,
+    empty: &'a [bool],
     /// The adaptive methods' `k` per block: the largest derivative
     /// (`adaptive-max`) or the change of the classified signal
     /// (`adaptive`); empty for the others.
-    block_k: std::borrow::Cow<'a, [f32]>,
+    block_k: &'a [f32],
     tree: Option<&'a octree::Octree>,
-    lut: Lut,
+    lut: &'a Lut,
     cam: Camera,
     params: &'a RenderParams,
     unit: f32,
@@ -379,11 +382,12 @@ impl GridVisitor for Job<'_> {
 
 /// The tables a render derives from the transfer function for its marcher.
 struct Tables {
-    /// Adaptive levels `level_lo..=level_hi`: step (world) and opacities.
+    /// Adaptive levels `level_lo..=level_hi`: step (world), and the
+    /// premultiplied tables of their steps one after the other.
     level_lo: i32,
     level_hi: i32,
     level_steps: Vec<f32>,
-    level_tables: Vec<Box<[[f32; 4]; crate::transfer::LUT_SIZE]>>,
+    level_tables: Arc<Vec<[f32; 4]>>,
 }
 
 impl Tables {
@@ -409,7 +413,7 @@ impl Job<'_> {
         let (box_lo, box_hi) = self.volume.sample_box();
         let frame = Frame {
             grid,
-            lut: &self.lut,
+            lut: self.lut,
             box_lo,
             box_hi,
             origin_w: self.volume.origin(),
@@ -419,10 +423,10 @@ impl Job<'_> {
             skip_empty: p.skip_empty,
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
-            empty: &self.empty,
+            empty: self.empty,
             occupied: p
                 .skip_empty
-                .then(|| self.blocks.occupied_box(&self.empty, box_lo, box_hi)),
+                .then(|| self.tft.occupied(self.blocks, box_lo, box_hi)),
             seed: p.seed,
         };
         match p.order {
@@ -460,7 +464,7 @@ impl Job<'_> {
             level_lo,
             level_hi,
             level_steps: levels.iter().map(|s| s * self.unit).collect(),
-            level_tables: levels.iter().map(|&r| self.lut.premultiplied(r)).collect(),
+            level_tables: self.tft.levels(&levels),
         };
         let k = p.adaptive_k_ref();
         match p.method {
@@ -474,21 +478,16 @@ impl Job<'_> {
                 self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Fixed, k))
             }
             Method::Adaptive => {
-                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Classified(&self.block_k), k))
+                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Classified(self.block_k), k))
             }
             Method::AdaptiveS0 => self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(Midpoint, k)),
             Method::AdaptiveMax => {
-                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(BlockMax(&self.block_k), k))
+                self.stepped::<T, C, Sh, _>(f, sh, &t, &t.steps(BlockMax(self.block_k), k))
             }
             Method::Threshold => {
                 // In SIMD packets where the CPU and the render allow: the
                 // ranges' premultiplied tables, one after the other.
-                let tables: Vec<[f32; 4]> = p
-                    .threshold
-                    .steps
-                    .iter()
-                    .flat_map(|&r| *self.lut.premultiplied(r))
-                    .collect();
+                let tables = self.tft.levels(&p.threshold.steps);
                 let thr = packet::Thr {
                     params: p.threshold,
                     steps: p.threshold.steps.map(|s| s * self.unit),
@@ -542,9 +541,10 @@ impl Job<'_> {
                     .unzip();
                 // In SIMD packets where the CPU and the render allow: the
                 // levels' premultiplied tables, one after the other.
-                let tables: Vec<[f32; 4]> = (0..=stochastic::MAX_LEVEL)
-                    .flat_map(|j| *self.lut.premultiplied(p.step * (1u32 << j) as f32))
+                let ratios: Vec<f32> = (0..=stochastic::MAX_LEVEL)
+                    .map(|j| p.step * (1u32 << j) as f32)
                     .collect();
+                let tables = self.tft.levels(&ratios);
                 let imp = packet::Imp {
                     pdf: self.pdf,
                     steps: &steps,
@@ -562,7 +562,7 @@ impl Job<'_> {
             }
             Method::Lod => {
                 let tree = self.tree.expect("the octree is built for lod");
-                let m = lod::LodRay::new(tree, &self.empty, &self.lut, &p.lod, p.step, self.unit);
+                let m = lod::LodRay::new(tree, self.empty, self.lut, &p.lod, p.step, self.unit);
                 if let Some(out) = self.lod_packets(f, &m) {
                     return out;
                 }
@@ -606,12 +606,6 @@ impl Job<'_> {
         m: &Steps<'_, L>,
     ) -> Option<(Image, RenderStats)> {
         if packet::level(self.params.simd).is_some() {
-            // The levels' tables end to end, for the lanes' offsets.
-            let tables: Vec<[f32; 4]> = t
-                .level_tables
-                .iter()
-                .flat_map(|q| q.iter().copied())
-                .collect();
             // Per block the rule's `k`, −1 where empty (the vector walk's
             // one gather per block); none for a rule it cannot walk.
             let k: Vec<f32> = match m.rule.vector() {
@@ -636,7 +630,7 @@ impl Job<'_> {
                  n: &mut ray::Counters| { w.next(m, f, grouped, c, n) };
             let runs = packet::Adapt {
                 level_steps: m.level_steps,
-                tables: &tables,
+                tables: &t.level_tables,
                 grouped,
                 walk: &walk,
                 vector: packet::vector_params(m, &k, f.skip_empty, grouped),
@@ -658,15 +652,7 @@ impl Job<'_> {
         m: &lod::LodRay<'_>,
     ) -> Option<Option<(Image, RenderStats)>> {
         packet::level(self.params.simd)?;
-        let level_tables: Vec<_> = m
-            .ratios
-            .iter()
-            .map(|&r| self.lut.premultiplied(r))
-            .collect();
-        let tables: Vec<[f32; 4]> = level_tables
-            .iter()
-            .flat_map(|q| q.iter().copied())
-            .collect();
+        let level_tables = self.tft.levels(&m.ratios);
         // Per leaf its amount of cloud, or where transparent minus its
         // skip distance (−1 without skipping): one gather.
         let dist = f.skip_empty.then(|| self.derived.skip_distances(f.empty));
@@ -696,7 +682,7 @@ impl Job<'_> {
                     _: &mut ray::Counters| march::Next::Ended;
         let runs = packet::Adapt {
             level_steps: &m.steps,
-            tables: &tables,
+            tables: &t.level_tables,
             grouped: false,
             walk: &walk,
             vector: None,
@@ -750,7 +736,7 @@ impl Job<'_> {
             .then(|| self.derived.skip_distances(f.empty));
         let pk = packet::Packets {
             f,
-            q: &t.level_tables[0],
+            q: t.level_tables.first_chunk().expect("a table per level"),
             st: t.level_steps[0],
             weights: Weights::of(p.optical),
             stop: composite::ert_stop(if back { 1.0 } else { p.ert }),

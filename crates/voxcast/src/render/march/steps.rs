@@ -228,9 +228,10 @@ pub(in crate::render) struct Steps<'a, L> {
     pub level_hi: i32,
     pub k_ref: f32,
     /// Per level (index `j − level_lo`): the step in world units and the
-    /// premultiplied table of that step ([`crate::transfer::Lut::premultiplied`]).
+    /// premultiplied table of that step ([`crate::transfer::Lut::premultiplied`]),
+    /// the tables one after the other.
     pub level_steps: &'a [f32],
-    pub level_tables: &'a [Box<[[f32; 4]; LUT_SIZE]>],
+    pub level_tables: &'a [[f32; 4]],
 }
 
 /// The last sample of an interval, waiting for its stretch: position,
@@ -355,7 +356,9 @@ impl<L> Steps<'_, L> {
         n: &mut Counters,
     ) -> bool {
         let st = self.level_steps[r.li];
-        let q = &self.level_tables[r.li];
+        let q: &[[f32; 4]; LUT_SIZE] = self.level_tables[r.li * LUT_SIZE..]
+            .first_chunk()
+            .expect("a table per level");
         let last = r.n1 - 1;
         s.restart();
         s.limit(r.cap);

@@ -420,10 +420,12 @@ impl<'a, S: Simd> VWalk<'a, S> {
         (S::blend(e, j, hi), S::blend(e, cap, four))
     }
 
-    /// The step (world units) of level indices `li`.
+    /// The step (world units) of level indices `li`: the finest's times
+    /// `2^li`, exactly the level's ([`super::vector_params`] walks only
+    /// steps that double), with no gather.
     #[inline(always)]
     unsafe fn step(&self, li: S::F) -> S::F {
-        S::gather_f::<4>(self.p.steps.as_ptr(), S::to_i(li))
+        self.s0 * pow2::<S>(li)
     }
 
     /// The lanes of `need`, past their run: each composites its run's
