@@ -18,9 +18,9 @@ const KEPT: usize = 8;
 /// the levels' premultiplied tables and `adaptive`'s change of the
 /// classified signal per block. Built by the first render with that
 /// transfer function and step and kept for the renders after it — a
-/// turning camera in the viewer, an animation's frames, the bench's
-/// repeats — which rebuilt all of it every frame before: 1.5 ms a frame on
-/// the teapot CT with `uniform`, 2.3 ms with `adaptive+grouped`, most of it
+/// turning camera in the viewer, the bench's repeats — which rebuilt all
+/// of it every frame before: 1.3 ms a frame on the teapot CT with
+/// `uniform`, 1.8 ms with `adaptive+grouped` (docs/engine.md), most of it
 /// the emptiness (the transfer function's largest opacity over each
 /// block's range) and the table (4096 evaluations of the transfer
 /// function).
