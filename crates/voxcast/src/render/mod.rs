@@ -316,7 +316,6 @@ impl<'v> Renderer<'v> {
             pdf: pdf.as_slice(),
             volume,
             tft: &tft,
-            lut: &tft.lut,
             cam,
             params,
             unit,
@@ -324,7 +323,6 @@ impl<'v> Renderer<'v> {
             cancel,
             blocks: &derived.blocks,
             derived: &derived,
-            empty: &tft.empty,
             block_k,
             surface: self.geometry.as_deref().map(|g| surface::SurfaceCtx {
                 geometry: g,
@@ -356,15 +354,14 @@ struct Job<'a> {
     volume: &'a Volume,
     blocks: &'a BlockGrid,
     derived: &'a Derived,
-    /// What the transfer function and step give (kept across renders).
+    /// What the transfer function and step give (kept across renders):
+    /// the table, the blocks' emptiness, the levels' tables.
     tft: &'a tf_tables::TfTables,
-    empty: &'a [bool],
     /// The adaptive methods' `k` per block: the largest derivative
     /// (`adaptive-max`) or the change of the classified signal
     /// (`adaptive`); empty for the others.
     block_k: &'a [f32],
     tree: Option<&'a octree::Octree>,
-    lut: &'a Lut,
     cam: Camera,
     params: &'a RenderParams,
     unit: f32,
@@ -413,7 +410,7 @@ impl Job<'_> {
         let (box_lo, box_hi) = self.volume.sample_box();
         let frame = Frame {
             grid,
-            lut: self.lut,
+            lut: &self.tft.lut,
             box_lo,
             box_hi,
             origin_w: self.volume.origin(),
@@ -423,7 +420,7 @@ impl Job<'_> {
             skip_empty: p.skip_empty,
             block_size: self.blocks.size,
             block_counts: self.blocks.counts,
-            empty: self.empty,
+            empty: &self.tft.empty,
             occupied: p
                 .skip_empty
                 .then(|| self.tft.occupied(self.blocks, box_lo, box_hi)),
@@ -492,7 +489,7 @@ impl Job<'_> {
                     params: p.threshold,
                     steps: p.threshold.steps.map(|s| s * self.unit),
                     tables: &tables,
-                    sigma: self.lut.sigmas(),
+                    sigma: self.tft.lut.sigmas(),
                     grouped: p.grouped,
                 };
                 if let Some(out) = self.packets::<T, ()>(f, &t, None, None, Some(thr), None) {
@@ -502,7 +499,7 @@ impl Job<'_> {
                     .threshold
                     .steps
                     .iter()
-                    .map(|&r| self.lut.alphas(r))
+                    .map(|&r| self.tft.lut.alphas(r))
                     .collect();
                 let m = Threshold {
                     params: p.threshold,
@@ -516,7 +513,7 @@ impl Job<'_> {
                 // loop for both).
                 let mc = p.method == Method::Mc;
                 let strat = packet::Strat {
-                    sigma: self.lut.sigmas(),
+                    sigma: self.tft.lut.sigmas(),
                     mc,
                 };
                 if let Some(out) = self.packets::<T, ()>(f, &t, None, None, None, Some(strat)) {
@@ -525,7 +522,7 @@ impl Job<'_> {
                 if mc {
                     return self.tiles::<T, C, _, _>(f, &stochastic::UniformMc, Trilinear(sh));
                 }
-                let full_alphas = self.lut.alphas(p.step);
+                let full_alphas = self.tft.lut.alphas(p.step);
                 let m = stochastic::Stratified {
                     full_alphas: &full_alphas,
                 };
@@ -536,7 +533,7 @@ impl Job<'_> {
                 let (steps, alphas): (Vec<f32>, Vec<_>) = (0..=stochastic::MAX_LEVEL)
                     .map(|j| {
                         let r = p.step * (1u32 << j) as f32;
-                        (r * self.unit, self.lut.alphas(r))
+                        (r * self.unit, self.tft.lut.alphas(r))
                     })
                     .unzip();
                 // In SIMD packets where the CPU and the render allow: the
@@ -562,7 +559,7 @@ impl Job<'_> {
             }
             Method::Lod => {
                 let tree = self.tree.expect("the octree is built for lod");
-                let m = lod::LodRay::new(tree, self.empty, self.lut, &p.lod, p.step, self.unit);
+                let m = lod::LodRay::new(tree, f.empty, f.lut, &p.lod, p.step, self.unit);
                 if let Some(out) = self.lod_packets(f, &m) {
                     return out;
                 }

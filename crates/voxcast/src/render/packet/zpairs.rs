@@ -186,25 +186,27 @@ mod tests {
             };
             let want: Vec<[f32; 2]> = (0..n).map(|i| [floats[i], floats[next(i)]]).collect();
             assert_eq!(v, &want, "f32, dims {dims:?}");
+            // The 16-bit copies: a voxel's bits low, its +z neighbour's high.
+            let h16 = |z: &ZPairs, bits: &[u16], what: &str| {
+                let ZPairs::H16(v) = z else {
+                    panic!("no {what} copy")
+                };
+                let want: Vec<u32> = (0..n)
+                    .map(|i| bits[i] as u32 | (bits[next(i)] as u32) << 16)
+                    .collect();
+                assert_eq!(v, &want, "{what}, dims {dims:?}");
+            };
             let shorts: Vec<i16> = bytes.iter().map(|&b| (b as i16 - 100) * 97).collect();
             let mut h = ZPairs::None;
             h.refill(&shorts, dims);
-            let ZPairs::H16(v) = &h else {
-                panic!("no i16 copy")
-            };
-            let want: Vec<u32> = (0..n)
-                .map(|i| shorts[i] as u16 as u32 | (shorts[next(i)] as u16 as u32) << 16)
-                .collect();
-            assert_eq!(v, &want, "i16, dims {dims:?}");
+            h16(
+                &h,
+                &shorts.iter().map(|&s| s as u16).collect::<Vec<_>>(),
+                "i16",
+            );
             let unsigned: Vec<u16> = bytes.iter().map(|&b| b as u16 * 257).collect();
             h.refill(&unsigned, dims);
-            let ZPairs::H16(v) = &h else {
-                panic!("no u16 copy")
-            };
-            let want: Vec<u32> = (0..n)
-                .map(|i| unsigned[i] as u32 | (unsigned[next(i)] as u32) << 16)
-                .collect();
-            assert_eq!(v, &want, "u16, dims {dims:?}");
+            h16(&h, &unsigned, "u16");
         }
     }
 }
