@@ -1,7 +1,8 @@
 //! `voxcast view` end to end in a virtual display (Xvfb) with software
 //! Vulkan (lavapipe): the screenshot of the window (the view's pixels as
 //! the user sees them) must match `voxcast render` of the scene the viewer
-//! saved. Without xvfb-run the tests skip with a note — except under CI
+//! saved. Each viewer gets an X server of its own (`Xvfb -displayfd`).
+//! Without Xvfb the tests skip with a note — except under CI
 //! (`CI=true`), where a missing display server or Vulkan driver fails them.
 
 use std::path::Path;
@@ -11,17 +12,17 @@ use std::time::{Duration, Instant};
 mod common;
 use common::{in_ci as ci, voxcast};
 
-/// True when `xvfb-run` can be found; otherwise skips (fails under CI).
+/// True when `Xvfb` can be found; otherwise skips (fails under CI).
 fn have_xvfb() -> bool {
     let found = Command::new("sh")
-        .args(["-c", "command -v xvfb-run"])
+        .args(["-c", "command -v Xvfb"])
         .output()
         .is_ok_and(|o| o.status.success());
     if !found {
         if ci() {
-            panic!("xvfb-run is missing (apt-get install xvfb xauth mesa-vulkan-drivers)");
+            panic!("Xvfb is missing (apt-get install xvfb xauth mesa-vulkan-drivers)");
         }
-        eprintln!("skipping: xvfb-run not found (apt-get install xvfb xauth mesa-vulkan-drivers)");
+        eprintln!("skipping: Xvfb not found (apt-get install xvfb xauth mesa-vulkan-drivers)");
     }
     found
 }
@@ -50,15 +51,76 @@ fn run_with_limit(mut cmd: Command, limit: Duration) -> Output {
     }
 }
 
-/// `xvfb-run -a voxcast view ARGS` in `dir`, on Vulkan only. One at a
-/// time: `xvfb-run -a` picks the first free display number, and two started
-/// together can pick the same one, so that one viewer finds no X server
-/// (seen once in a local CI run).
+/// A virtual X server of its own, stopped on drop. `Xvfb -displayfd` picks
+/// a free display number itself and writes it only once it accepts
+/// connections, so a viewer started then always finds its server.
+/// (`xvfb-run -a` guesses a free number from lock files and waits on a
+/// signal; twice, once in the project's CI, a viewer it started found no X
+/// server.)
+struct VirtualDisplay {
+    server: std::process::Child,
+    /// `:N`, for `DISPLAY`.
+    display: String,
+}
+
+impl VirtualDisplay {
+    fn start(dir: &Path) -> VirtualDisplay {
+        use std::io::BufRead;
+        let log = std::fs::File::create(dir.join("xvfb.log")).unwrap();
+        let mut server = Command::new("Xvfb")
+            .args(["-displayfd", "1", "-screen", "0", "1600x1200x24"])
+            .args(["-nolisten", "tcp"])
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(log)
+            .spawn()
+            .expect("start Xvfb");
+        let out = server.stdout.take().unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut line = String::new();
+            let _ = std::io::BufReader::new(out).read_line(&mut line);
+            let _ = tx.send(line);
+        });
+        let line = rx.recv_timeout(Duration::from_secs(60)).unwrap_or_default();
+        let number = line.trim();
+        if number.is_empty() || !number.bytes().all(|b| b.is_ascii_digit()) {
+            let _ = server.kill();
+            let _ = server.wait();
+            panic!(
+                "Xvfb did not say its display within 60 s ({line:?}): {}",
+                std::fs::read_to_string(dir.join("xvfb.log")).unwrap_or_default()
+            );
+        }
+        VirtualDisplay {
+            server,
+            display: format!(":{number}"),
+        }
+    }
+}
+
+impl Drop for VirtualDisplay {
+    /// SIGTERM first, so that the server removes its lock file and socket;
+    /// SIGKILL if it has not gone within 10 s.
+    fn drop(&mut self) {
+        let _ = Command::new("kill")
+            .args(["-TERM", &self.server.id().to_string()])
+            .status();
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(10) {
+            if let Ok(Some(_)) = self.server.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        let _ = self.server.kill();
+        let _ = self.server.wait();
+    }
+}
+
+/// `voxcast view ARGS` in `dir` on a virtual display of its own, on Vulkan
+/// only.
 fn view(args: &[&str], dir: &Path) -> Output {
-    static ONE_DISPLAY_AT_A_TIME: std::sync::Mutex<()> = std::sync::Mutex::new(());
-    let _turn = ONE_DISPLAY_AT_A_TIME
-        .lock()
-        .unwrap_or_else(|poisoned| poisoned.into_inner());
     let runtime = dir.join("xdg");
     std::fs::create_dir_all(&runtime).unwrap();
     #[cfg(unix)]
@@ -66,12 +128,14 @@ fn view(args: &[&str], dir: &Path) -> Output {
         use std::os::unix::fs::PermissionsExt;
         std::fs::set_permissions(&runtime, std::fs::Permissions::from_mode(0o700)).unwrap();
     }
-    let mut cmd = Command::new("xvfb-run");
-    cmd.args(["-a", "-s", "-screen 0 1600x1200x24"])
-        .arg(env!("CARGO_BIN_EXE_voxcast"))
-        .arg("view")
+    let screen = VirtualDisplay::start(dir);
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_voxcast"));
+    cmd.arg("view")
         .args(args)
         .current_dir(dir)
+        .env("DISPLAY", &screen.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env_remove("XAUTHORITY")
         // A missing Vulkan driver must fail, not fall back to OpenGL.
         .env("WGPU_BACKEND", "vulkan")
         .env("XDG_RUNTIME_DIR", &runtime);
@@ -111,7 +175,7 @@ fn check_matches_render_with(dir: &Path, more: &[&str]) -> f64 {
 
 /// `voxcast view DATA ARGS --screenshot out.png --exit-after-frames FRAMES
 /// --save-scene s.toml` in a new temporary folder; `None` (a skip) where the
-/// data or `xvfb-run` is missing.
+/// data or Xvfb is missing.
 fn scripted_view(data: &str, args: &[&str], frames: &str) -> Option<(tempfile::TempDir, Output)> {
     let data = voxcast::testdata::data_path(data)?;
     if !have_xvfb() {
