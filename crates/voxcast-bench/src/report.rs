@@ -148,6 +148,11 @@ pub struct Measured {
     /// where the scalar loop ran, and on the GPU.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub simd: Option<&'static str>,
+    /// Where empty-space skipping was on but the renderer left it out (the
+    /// transfer function hides too few blocks for it to pay): the share of
+    /// blocks it hides.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub skipping_left_out: Option<f32>,
 }
 
 /// One method's row.

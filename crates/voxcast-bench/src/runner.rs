@@ -332,6 +332,7 @@ pub fn run_cancellable(
                     identical: psnr.is_infinite(),
                     ssim,
                     simd: st.simd.map(|l| l.name()),
+                    skipping_left_out: st.skipping_left_out,
                 })
             }
             _ => None,

@@ -164,6 +164,21 @@ fn preamble(r: &BenchReport) -> Vec<String> {
             scalar.join(", ")
         ));
     }
+    // The methods that left skipping out (hardly a block is empty).
+    let unskipped: Vec<(&str, f32)> = r
+        .methods
+        .iter()
+        .filter_map(|m| Some((m.name.as_str(), m.measured.as_ref()?.skipping_left_out?)))
+        .collect();
+    if let Some(&(_, share)) = unskipped.first() {
+        let names: Vec<&str> = unskipped.iter().map(|u| u.0).collect();
+        lines.push(format!(
+            "Empty-space skipping left out by {}: the transfer function hides {:.1} % of the blocks, under the {:.1} % where skipping pays for its tests (the pictures are the same; the samples include the empty ones).",
+            names.join(", "),
+            share * 100.0,
+            voxcast::render::SKIP_PAYS * 100.0
+        ));
+    }
     if !on_device.is_empty() {
         lines.push(format!(
             "(GPU ms): the compute passes alone, by timestamp queries; the wall time adds writing the parameters, reading the image back and averaging it on the CPU. On the device: {}.",

@@ -399,6 +399,7 @@ impl GpuRenderer {
             seconds: start.elapsed().as_secs_f64(),
             device_seconds,
             simd: None,
+            skipping_left_out: None,
         };
         Ok((image, stats))
     }

@@ -701,3 +701,89 @@ fn a_kept_renderer_redraws_what_a_fresh_one_draws() {
         "only {changed} of 15 changes changed the picture"
     );
 }
+
+/// A 64³ u8 volume, dense (a ripple between 60 and 200 everywhere) but
+/// for a cube of zeros `0..c` in one corner.
+fn dense_but_a_corner(c: usize) -> voxcast::Volume {
+    let n = 64usize;
+    let mut f = Vec::with_capacity(n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let v = if i < c && j < c && k < c {
+                    0.0
+                } else {
+                    130.0
+                        + 70.0
+                            * ((i as f32 * 0.31).sin() * (j as f32 * 0.23 + k as f32 * 0.17).cos())
+                };
+                f.push(v as u8);
+            }
+        }
+    }
+    voxcast::Volume::new(
+        [n; 3],
+        glam::Vec3::ONE,
+        glam::Vec3::ZERO,
+        voxcast::volume::VoxelData::U8(f.into()),
+    )
+    .unwrap()
+}
+
+/// Where the transfer function hides under `SKIP_PAYS` of the blocks, the
+/// CPU marchers leave skipping out (it would save less than its tests
+/// cost): the same pixels and samples as without it, and the stats say
+/// so; where it hides more, they skip.
+#[test]
+fn skipping_is_left_out_where_hardly_a_block_is_empty() {
+    let tf = TransferFunction {
+        color: vec![[0.0, 1.0, 0.5, 0.2], [1.0, 0.3, 0.6, 1.0]],
+        opacity: vec![[0.0, 0.0], [0.1, 0.0], [0.5, 0.05], [1.0, 0.3]],
+        window: None,
+    };
+    let cam = CameraParams {
+        azimuth: 225.0,
+        elevation: -35.0,
+        ..Default::default()
+    };
+    // 8³ blocks: a corner of 24 zeros hides 2³ of the 8³ blocks (1.6 %),
+    // one of 40 hides 4³ (12.5 %).
+    for (c, dense) in [(24, true), (40, false)] {
+        let vol = dense_but_a_corner(c);
+        let r = Renderer::new(&vol, [0.0, 255.0]).unwrap();
+        for method in [Method::Uniform, Method::Adaptive, Method::Lod] {
+            for shading in [false, true] {
+                let mut p = RenderParams {
+                    width: 48,
+                    height: 40,
+                    method,
+                    shading,
+                    ..Default::default()
+                };
+                let what = format!("corner {c}, {} shading {shading}", method.name());
+                p.skip_empty = false;
+                let (full, s_full) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+                p.skip_empty = true;
+                let (skip, s_skip) = r.render(&tf, &cam, &p, &no_progress).unwrap();
+                assert!(max_diff(&full, &skip) <= 1e-6, "{what}: a pixel moved");
+                assert_eq!(s_full.skipping_left_out, None, "{what}: not asked for");
+                if dense {
+                    let share = s_skip.skipping_left_out.unwrap_or(0.0);
+                    assert!(
+                        share > 0.0 && share < voxcast::render::SKIP_PAYS,
+                        "{what}: left out at {share}"
+                    );
+                    assert_eq!(s_skip.samples, s_full.samples, "{what}");
+                } else {
+                    assert_eq!(s_skip.skipping_left_out, None, "{what}");
+                    assert!(
+                        s_skip.samples < s_full.samples,
+                        "{what}: {} samples skipping, {} not",
+                        s_skip.samples,
+                        s_full.samples
+                    );
+                }
+            }
+        }
+    }
+}

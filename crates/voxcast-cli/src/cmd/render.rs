@@ -132,6 +132,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
             stats.samples_per_second() / 1e6,
             stats.early_terminated
         );
+        if let Some(share) = stats.skipping_left_out {
+            eprintln!(
+                "empty-space skipping left out: the transfer function hides {:.1} % of the blocks, too few for it to pay",
+                share * 100.0
+            );
+        }
         if let Some(d) = stats.device_seconds {
             eprintln!(
                 "GPU time (timestamp queries, compute passes alone): {:.3} ms, {:.1} M samples/s",

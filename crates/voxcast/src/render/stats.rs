@@ -34,6 +34,11 @@ pub struct RenderStats {
     /// `--simd scalar`) and on the GPU.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub simd: Option<super::packet::Level>,
+    /// Where empty-space skipping was asked for but left out because the
+    /// transfer function hides too few blocks for it to pay
+    /// ([`SKIP_PAYS`](super::SKIP_PAYS)): the share of blocks it hides.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub skipping_left_out: Option<f32>,
 }
 
 fn is_zero(n: &u64) -> bool {
@@ -51,6 +56,7 @@ impl RenderStats {
         self.early_terminated += o.early_terminated;
         self.capped_paths += o.capped_paths;
         self.simd = self.simd.or(o.simd);
+        self.skipping_left_out = self.skipping_left_out.or(o.skipping_left_out);
     }
 
     /// Samples per second of wall time.

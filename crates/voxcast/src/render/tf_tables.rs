@@ -31,6 +31,8 @@ pub(super) struct TfTables {
     pub lut: Lut,
     /// Per block, whether the transfer function hides all of it.
     pub empty: Vec<bool>,
+    /// The share of blocks `empty` (0 … 1).
+    pub empty_share: f32,
     /// [`BlockGrid::occupied_box`] of `empty` in the volume's sample box
     /// (the same for every render of one volume).
     occupied: OnceLock<(Vec3, Vec3)>,
@@ -116,11 +118,14 @@ impl Derived {
             &self.tf_tables,
             |t| t.tf == *tf && t.step.to_bits() == step.to_bits(),
             || {
+                let empty = self.blocks.empty_flags(tf);
+                let hidden = empty.iter().filter(|&&e| e).count();
                 Arc::new(TfTables {
                     tf: tf.clone(),
                     step,
                     lut: Lut::new(tf, step),
-                    empty: self.blocks.empty_flags(tf),
+                    empty_share: hidden as f32 / empty.len().max(1) as f32,
+                    empty,
                     occupied: OnceLock::new(),
                     levels: Mutex::new(Vec::new()),
                     change: Mutex::new(Vec::new()),

@@ -726,6 +726,7 @@ impl<'s> OutOfCore<'s> {
             seconds: start.elapsed().as_secs_f64(),
             device_seconds: None,
             simd: packets,
+            skipping_left_out: None,
         };
         Ok((pixels, rs, stats))
     }
