@@ -100,22 +100,57 @@ pub struct Histogram {
 
 impl Histogram {
     pub(super) fn compute(data: &VoxelData, lo: f32, hi: f32, bins: usize) -> Histogram {
+        use rayon::prelude::*;
         let bins = bins.max(1);
-        let mut counts = vec![0u64; bins];
         let width = if hi > lo { hi - lo } else { 1.0 };
         let k = bins as f32 / width;
-        let mut add = |x: f32| {
-            if x.is_finite() {
-                let b = (((x - lo) * k) as usize).min(bins - 1);
-                counts[b] += 1;
-            }
+        let bin = |x: f32| {
+            x.is_finite()
+                .then(|| (((x - lo) * k) as usize).min(bins - 1))
         };
-        match data {
-            VoxelData::U8(v) => v.iter().for_each(|&x| add(x as f32)),
-            VoxelData::U16(v) => v.iter().for_each(|&x| add(x as f32)),
-            VoxelData::I16(v) => v.iter().for_each(|&x| add(x as f32)),
-            VoxelData::F32(v) => v.iter().for_each(|&x| add(x)),
+        /// Counts per bin of `v`, in parallel chunks summed at the end.
+        fn counted<T: Copy + Sync>(
+            v: &[T],
+            bins: usize,
+            bin: impl Fn(T) -> Option<usize> + Sync,
+        ) -> Vec<u64> {
+            v.par_chunks(1 << 16)
+                .fold(
+                    || vec![0u64; bins],
+                    |mut c, chunk| {
+                        for &x in chunk {
+                            if let Some(b) = bin(x) {
+                                c[b] += 1;
+                            }
+                        }
+                        c
+                    },
+                )
+                .reduce(
+                    || vec![0u64; bins],
+                    |mut a, b| {
+                        a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                        a
+                    },
+                )
         }
+        let counts = match data {
+            // Bytes: how many of each value, then each value's count to its
+            // bin (the same bin as value by value).
+            VoxelData::U8(v) => {
+                let per_value = counted(v, 256, |x: u8| Some(x as usize));
+                let mut counts = vec![0u64; bins];
+                for (x, &c) in per_value.iter().enumerate() {
+                    if let Some(b) = bin(x as f32) {
+                        counts[b] += c;
+                    }
+                }
+                counts
+            }
+            VoxelData::U16(v) => counted(v, bins, |x: u16| bin(x as f32)),
+            VoxelData::I16(v) => counted(v, bins, |x: i16| bin(x as f32)),
+            VoxelData::F32(v) => counted(v, bins, bin),
+        };
         Histogram { lo, hi, counts }
     }
 
@@ -161,6 +196,38 @@ impl Histogram {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The histogram in parallel chunks (through a per-value count for
+    /// bytes) counts what a serial pass value by value counts.
+    #[test]
+    fn histograms_in_parallel_chunks_equal_a_serial_pass() {
+        let serial = |xs: &[f32], lo: f32, hi: f32, bins: usize| {
+            let mut c = vec![0u64; bins];
+            let k = bins as f32 / if hi > lo { hi - lo } else { 1.0 };
+            for &x in xs.iter().filter(|x| x.is_finite()) {
+                c[(((x - lo) * k) as usize).min(bins - 1)] += 1;
+            }
+            c
+        };
+        let n = 200_003;
+        let bytes: Vec<u8> = (0..n).map(|i| (i * 7919 % 251) as u8).collect();
+        let words: Vec<i16> = (0..n).map(|i| (i * 7919 % 60_001) as i16).collect();
+        let mut floats: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin() * 40.0).collect();
+        floats[5] = f32::NAN;
+        floats[n - 1] = f32::INFINITY;
+        for (bins, lo, hi) in [(256, 0.0, 250.0), (7, 3.0, 200.0), (100, 10.0, 10.0)] {
+            let as_f = |v: &[u8]| v.iter().map(|&x| x as f32).collect::<Vec<_>>();
+            let h = Histogram::compute(&VoxelData::U8(bytes.clone().into()), lo, hi, bins);
+            assert_eq!(h.counts, serial(&as_f(&bytes), lo, hi, bins), "u8 {bins}");
+            let wf: Vec<f32> = words.iter().map(|&x| x as f32).collect();
+            let (wlo, whi) = (lo * 100.0 - 30_000.0, hi * 100.0);
+            let h = Histogram::compute(&VoxelData::I16(words.clone().into()), wlo, whi, bins);
+            assert_eq!(h.counts, serial(&wf, wlo, whi, bins), "i16 {bins}");
+            let h = Histogram::compute(&VoxelData::F32(floats.clone().into()), -lo, hi / 5.0, bins);
+            assert_eq!(h.counts, serial(&floats, -lo, hi / 5.0, bins), "f32 {bins}");
+            assert_eq!(h.total(), n as u64 - 2, "NaN and ∞ are not counted");
+        }
+    }
 
     #[test]
     fn integer_stats_in_parallel_chunks_equal_a_serial_float_pass() {
