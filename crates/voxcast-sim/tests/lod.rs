@@ -82,10 +82,22 @@ fn lod_with_every_spacing_one_is_uniform() {
     }
 }
 
+/// Skipping the transparent leaves saves samples at nearly the same
+/// quality: past a skipped stretch the march starts again on the base
+/// grid, where without skipping the sparse spacing strides through it, so
+/// the samples after it lie elsewhere (the two pictures are about 33 dB
+/// apart on this small cloud at 96×80, the size of `lod`'s own error
+/// here), and against the reference skipping measured 0.6–1.0 dB lower
+/// (35.0 against 35.6–36.1 dB).
 #[test]
-fn skipping_empty_subtrees_changes_no_pixel() {
+fn skipping_empty_leaves_saves_samples_at_nearly_the_same_quality() {
     let vol = cloud();
     let r = Renderer::new(&vol, [0.0, 1.0]).unwrap();
+    let mut reference = params(Method::Uniform);
+    reference.step = 1.0 / 16.0;
+    reference.ert = 1.0;
+    reference.skip_empty = false;
+    let (ref_img, _) = draw(&r, &reference);
     for jitter in [false, true] {
         let mut skip = params(Method::Lod);
         skip.jitter = jitter;
@@ -93,7 +105,14 @@ fn skipping_empty_subtrees_changes_no_pixel() {
         noskip.skip_empty = false;
         let (a, sa) = draw(&r, &skip);
         let (b, sb) = draw(&r, &noskip);
-        assert_eq!(max_diff(&a, &b), 0.0, "jitter {jitter}");
+        let (pa, pb) = (
+            metrics::psnr(&ref_img, &a).unwrap(),
+            metrics::psnr(&ref_img, &b).unwrap(),
+        );
+        assert!(
+            pa >= pb - 1.5,
+            "jitter {jitter}: skipping {pa} dB, not {pb} dB"
+        );
         assert!(
             sa.samples * 2 < sb.samples,
             "skipping should save samples: {} vs {}",

@@ -68,10 +68,10 @@ fn every_method_composites_the_same_in_both_orders() {
                     ..Default::default()
                 };
                 if method == Method::Lod {
-                    // S3 spaces a leaf's samples by the opacity in front of
-                    // it, which a back-to-front pass cannot know (it uses
-                    // the leaf's own amount): one spacing everywhere makes
-                    // the two passes walk the same samples.
+                    // S3 spaces the samples by the opacity in front of
+                    // them, which a back-to-front pass cannot know (it uses
+                    // the leaves' own amounts): one spacing everywhere makes
+                    // the two passes take the same samples.
                     p.lod.high = 3;
                     p.lod.low = 3;
                     p.lod.sparse = 3;
@@ -287,7 +287,7 @@ fn packets_give_the_scalar_pixels() {
 /// termination off) against the scalar loop's back-to-front recurrence,
 /// at every level this CPU has: every marcher the packets run, flat and
 /// Phong, skipping on and off, a u8 and an f32 grid; no ray terminates
-/// early. `lod`'s leaves are classed with no opacity in front of them, as
+/// early. `lod`'s samples are classed with no opacity in front of them, as
 /// the scalar back-to-front pass does.
 #[test]
 fn back_to_front_packets_give_the_scalar_pixels() {
@@ -367,9 +367,9 @@ fn back_to_front_packets_give_the_scalar_pixels() {
 /// CPU has, the packets give the scalar pixels with the same samples
 /// (a jump passes only samples the scalar march skips too);
 /// `importance`'s vector walks, through the same long empty stretches,
-/// give the scalar walk's samples; `lod`'s leaf walks, which jump the
-/// same cubes where nothing is pending, give the scalar octree walk's
-/// pixels and samples; `threshold`'s lanes, which jump them and start
+/// give the scalar walk's samples; `lod`'s lanes (in `threshold`'s loop),
+/// which jump the same cubes and start again on the base grid, give the
+/// scalar march's pixels and samples; `threshold`'s lanes, which jump them and start
 /// again on the base grid, sample where the scalar march restarts;
 /// `stratified`'s, which go on at the first interval past the cube,
 /// take the scalar march's random positions; and `mc`'s, which cannot
@@ -765,7 +765,15 @@ fn skipping_is_left_out_where_hardly_a_block_is_empty() {
                 let (full, s_full) = r.render(&tf, &cam, &p, &no_progress).unwrap();
                 p.skip_empty = true;
                 let (skip, s_skip) = r.render(&tf, &cam, &p, &no_progress).unwrap();
-                assert!(max_diff(&full, &skip) <= 1e-6, "{what}: a pixel moved");
+                if method == Method::Lod && !dense {
+                    // `lod` starts again on the base grid past a skipped
+                    // stretch, where without skipping its spacing strides
+                    // through it: the samples after it move (52 dB).
+                    let db = voxcast::metrics::psnr(&full, &skip).unwrap_or(f64::INFINITY);
+                    assert!(db >= 45.0, "{what}: {db} dB apart");
+                } else {
+                    assert!(max_diff(&full, &skip) <= 1e-6, "{what}: a pixel moved");
+                }
                 assert_eq!(s_full.skipping_left_out, None, "{what}: not asked for");
                 if dense {
                     let share = s_skip.skipping_left_out.unwrap_or(0.0);

@@ -504,7 +504,7 @@ impl Job<'_> {
                 // ranges' premultiplied tables, one after the other.
                 let tables = self.tft.levels(&p.threshold.steps);
                 let thr = packet::Thr {
-                    params: p.threshold,
+                    select: packet::Select::Range(p.threshold),
                     steps: p.threshold.steps.map(|s| s * self.unit),
                     tables: &tables,
                     sigma: self.tft.lut.sigmas(),
@@ -577,8 +577,8 @@ impl Job<'_> {
             }
             Method::Lod => {
                 let tree = self.tree.expect("the octree is built for lod");
-                let m = lod::LodRay::new(tree, f.empty, f.lut, &p.lod, p.step, self.unit);
-                if let Some(out) = self.lod_packets(f, &m) {
+                let m = lod::LodRay::new(tree, f.lut, &p.lod, p.step, self.unit);
+                if let Some(out) = self.lod_packets(f, &t, &m) {
                     return out;
                 }
                 self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
@@ -649,7 +649,6 @@ impl Job<'_> {
                 grouped,
                 walk: &walk,
                 vector: packet::vector_params(m, &k, f.skip_empty, grouped),
-                lod: None,
             };
             if let Some(out) = self.packets(f, t, None, Some(&runs), None, None) {
                 return out;
@@ -658,58 +657,38 @@ impl Job<'_> {
         self.grouped::<T, C, Sh, _>(f, sh, m)
     }
 
-    /// `lod` (`m`) in the SIMD ray packets, where the CPU and the render
-    /// allow: its spacing classes as a step-per-block march's levels,
-    /// walked by the packets' `lod` walk.
+    /// `lod` in the SIMD packets (`threshold`'s loop, the step picked by
+    /// the sample's class) where the CPU and the render allow.
     fn lod_packets<T: Voxel>(
         &self,
         f: &Frame<'_, T>,
-        m: &lod::LodRay<'_>,
+        t: &Tables,
+        m: &lod::LodRay,
     ) -> Option<Option<(Image, RenderStats)>> {
         packet::level(self.params.simd)?;
-        let level_tables = self.tft.levels(&m.ratios);
-        // Per leaf its amount of cloud, or where transparent minus its
-        // skip distance (−1 without skipping): one gather.
-        let dist = f.skip_empty.then(|| self.derived.skip_distances(f.empty));
+        let tables = self.tft.levels(&m.ratios);
+        // Per leaf its amount of cloud, negative where transparent (the
+        // scalar march's amount there is 0: classed sparse either way).
         let amount: Vec<f32> = m
             .amount
             .iter()
             .zip(f.empty)
-            .enumerate()
-            .map(|(b, (&a, &e))| match (e, &dist) {
-                (false, _) => a,
-                (true, Some(d)) => -(d[b].max(1) as f32),
-                (true, None) => -1.0,
-            })
+            .map(|(&a, &e)| if e { -1.0 } else { a })
             .collect();
-        // The classes as levels 0…2 (the packets' fixed-step table and
-        // step are the first's; each lane's run carries its own).
-        let t = Tables {
-            level_lo: 0,
-            level_hi: 2,
-            level_steps: m.steps.to_vec(),
-            level_tables,
-        };
-        // The scalar walk of a step-per-block march never runs for `lod`.
-        let walk = |_: &Frame<'_, T>,
-                    _: &mut march::RunWalk,
-                    _: &mut composite::Front,
-                    _: &mut ray::Counters| march::Next::Ended;
-        let runs = packet::Adapt {
-            level_steps: &m.steps,
-            tables: &t.level_tables,
-            grouped: false,
-            walk: &walk,
-            vector: None,
-            lod: Some(packet::VLodParams {
+        let thr = packet::Thr {
+            select: packet::Select::Lod(packet::LodSelect {
                 amount: &amount,
+                counts: m.counts,
+                inv_leaf: m.inv_leaf,
                 threshold: m.threshold,
-                steps: m.steps,
-                skip_empty: f.skip_empty,
                 front: self.params.order == Order::FrontToBack,
             }),
+            steps: m.steps,
+            tables: &tables,
+            sigma: self.tft.lut.sigmas(),
+            grouped: false,
         };
-        self.packets(f, &t, None, Some(&runs), None, None)
+        self.packets::<T, ()>(f, t, None, None, Some(thr), None)
     }
 
     /// A render through the SIMD ray packets (packet/) — a fixed step,
@@ -733,8 +712,8 @@ impl Job<'_> {
         // off: the same samples and, the over operator being associative,
         // the same sum to a float rounding (as on the GPU); the scalar loop
         // keeps S4's recurrence over the buffered samples. (`lod` then
-        // classes its leaves with no opacity in front, as that loop does:
-        // `VLodParams::front`.)
+        // classes its samples with no opacity in front, as that loop does:
+        // `LodSelect::front`.)
         let back = p.order == Order::BackToFront;
         if (p.grouped && runs.is_none() && thr.is_none())
             || shading.is_some_and(|bp| !packet::shades(&bp))

@@ -122,15 +122,6 @@ pub(super) struct Sample {
     pub hit: Option<(usize, Vec3)>,
 }
 
-/// A sample evaluated but not yet composited (its stretch of ray is known
-/// only when the next sample's position is).
-#[derive(Clone, Copy)]
-pub(super) struct Pending {
-    pub t: f32,
-    pub entry: usize,
-    pub rgb: Vec3,
-}
-
 /// Where samples go along the ray (DESIGN.md axis 1). A marcher owns its
 /// method's per-render state (step tables, pdf, octree) and its loop over
 /// the ray, generic over the other two choices.
@@ -204,14 +195,4 @@ pub(super) trait Composite {
     /// The composite, over the opaque surface colour `behind` if the ray
     /// ended on one: premultiplied linear colour and opacity.
     fn finish(self, behind: Option<Vec3>) -> Vec4;
-}
-
-/// Composites the pending sample `p` over the stretch up to `t_next`
-/// (opacity corrected for the stretch's length); true when the ray may
-/// stop.
-#[inline(always)]
-pub(super) fn flush<T, C: Composite>(f: &Frame<'_, T>, p: Pending, t_next: f32, c: &mut C) -> bool {
-    let ds = t_next - p.t;
-    let alpha = 1.0 - (-f.lut.sigma(p.entry) * ds / f.unit).exp();
-    alpha > 0.0 && c.add(p.rgb, alpha)
 }

@@ -76,7 +76,6 @@ macro_rules! entry {
 mod dispatch;
 mod distance;
 mod importance;
-mod lod;
 mod mc;
 mod runs;
 mod shade;
@@ -91,11 +90,10 @@ pub(in crate::render) use distance::skip_distances;
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
-pub(in crate::render) use lod::VLodParams;
 use runs::WalkStart;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 pub(in crate::render) use stratified::Strat;
-pub(in crate::render) use threshold::Thr;
+pub(in crate::render) use threshold::{LodSelect, Select, Thr};
 pub(in crate::render) use zpairs::ZPairs;
 
 /// Lanes of a packet: a 4×4 square of a tile. AVX-512 marches them in one
@@ -418,10 +416,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
         let mut starts: [Option<WalkStart>; LANES] = [None; LANES];
         #[cfg(target_arch = "x86_64")]
-        let vector_runs = R::ON
-            && self
-                .runs
-                .is_some_and(|r| r.vector().is_some() || r.lod().is_some());
+        let vector_runs = R::ON && self.runs.is_some_and(|r| r.vector().is_some());
         #[cfg(target_arch = "x86_64")]
         let vector_set_up = vector_runs
             || (!R::ON && self.thr.is_none() && self.strat.is_none() && self.imp.is_none());
@@ -661,32 +656,46 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         if !R::ON && self.thr.is_some() {
             // `threshold`: skipping, shading and grouped reuse (its own
             // loop).
+            // `lod` (its own selection in the same loop) is never grouped.
+            let lod = matches!(self.thr.as_ref().map(|t| &t.select), Some(Select::Lod(_)));
             macro_rules! thr {
                 ($f:ident) => {
-                    match (choice.0, choice.1, choice.3) {
-                        (false, false, false) => {
-                            threshold::$f::<T, R, false, false, false>(self, lanes, st)
+                    match (lod, choice.0, choice.1, choice.3) {
+                        (false, false, false, false) => {
+                            threshold::$f::<T, R, false, false, false, false>(self, lanes, st)
                         }
-                        (true, false, false) => {
-                            threshold::$f::<T, R, true, false, false>(self, lanes, st)
+                        (false, true, false, false) => {
+                            threshold::$f::<T, R, true, false, false, false>(self, lanes, st)
                         }
-                        (false, true, false) => {
-                            threshold::$f::<T, R, false, true, false>(self, lanes, st)
+                        (false, false, true, false) => {
+                            threshold::$f::<T, R, false, true, false, false>(self, lanes, st)
                         }
-                        (true, true, false) => {
-                            threshold::$f::<T, R, true, true, false>(self, lanes, st)
+                        (false, true, true, false) => {
+                            threshold::$f::<T, R, true, true, false, false>(self, lanes, st)
                         }
-                        (false, false, true) => {
-                            threshold::$f::<T, R, false, false, true>(self, lanes, st)
+                        (false, false, false, true) => {
+                            threshold::$f::<T, R, false, false, true, false>(self, lanes, st)
                         }
-                        (true, false, true) => {
-                            threshold::$f::<T, R, true, false, true>(self, lanes, st)
+                        (false, true, false, true) => {
+                            threshold::$f::<T, R, true, false, true, false>(self, lanes, st)
                         }
-                        (false, true, true) => {
-                            threshold::$f::<T, R, false, true, true>(self, lanes, st)
+                        (false, false, true, true) => {
+                            threshold::$f::<T, R, false, true, true, false>(self, lanes, st)
                         }
-                        (true, true, true) => {
-                            threshold::$f::<T, R, true, true, true>(self, lanes, st)
+                        (false, true, true, true) => {
+                            threshold::$f::<T, R, true, true, true, false>(self, lanes, st)
+                        }
+                        (true, false, false, _) => {
+                            threshold::$f::<T, R, false, false, false, true>(self, lanes, st)
+                        }
+                        (true, true, false, _) => {
+                            threshold::$f::<T, R, true, false, false, true>(self, lanes, st)
+                        }
+                        (true, false, true, _) => {
+                            threshold::$f::<T, R, false, true, false, true>(self, lanes, st)
+                        }
+                        (true, true, true, _) => {
+                            threshold::$f::<T, R, true, true, false, true>(self, lanes, st)
                         }
                     }
                 };

@@ -9,7 +9,6 @@
 //! The last sample of a run waits, as in [`Steps::march`], until the walk
 //! knows where its stretch ends; the walk composites it.
 
-use super::lod::VLodParams;
 use super::vwalk::VParams;
 use super::{Lane, Packets, Setup};
 use crate::render::composite::Front;
@@ -38,9 +37,6 @@ pub(in crate::render) trait Runs<T: Voxel>: Sync {
     /// What the lanes' vector walk reads, where the rule's level is a
     /// table lookup; `None`: the lanes walk in scalar code (`next`).
     fn vector(&self) -> Option<VParams<'_>>;
-    /// What the lanes' `lod` walk reads ([`super::lod`]), for `lod`'s
-    /// runs (which `next` and `vector` do not walk).
-    fn lod(&self) -> Option<VLodParams<'_>>;
 }
 
 impl<T: Voxel> Runs<T> for () {
@@ -58,9 +54,6 @@ impl<T: Voxel> Runs<T> for () {
         Next::Ended
     }
     fn vector(&self) -> Option<VParams<'_>> {
-        None
-    }
-    fn lod(&self) -> Option<VLodParams<'_>> {
         None
     }
 }
@@ -83,9 +76,6 @@ pub(in crate::render) struct Adapt<'a, T> {
     /// What the lanes' vector walk reads ([`vector_params`]), or `None`
     /// where they walk in scalar code.
     pub vector: Option<VParams<'a>>,
-    /// For `lod`: what its walk reads (then `walk` and `vector` are not
-    /// used).
-    pub lod: Option<VLodParams<'a>>,
 }
 
 /// The vector walk's parameters of march `steps` with `k` per block
@@ -134,9 +124,6 @@ impl<T: Voxel> Runs<T> for Adapt<'_, T> {
     }
     fn vector(&self) -> Option<VParams<'_>> {
         self.vector
-    }
-    fn lod(&self) -> Option<VLodParams<'_>> {
-        self.lod
     }
 }
 

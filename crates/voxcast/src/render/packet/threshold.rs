@@ -1,6 +1,8 @@
-//! `threshold` in the packets: each lane steps by the step of the range
-//! its last value fell into (`march::Threshold`, ray by ray), so the
-//! lanes' positions drift apart and each keeps its own `t`. Empty blocks
+//! `threshold` and `lod` in the packets: each lane steps by the step of
+//! the range its last value fell into (`march::Threshold`, ray by ray),
+//! or of its sample's `lod` class (`LodRay::class_at`: the leaf's amount
+//! of cloud through the opacity in front, looking one spacing ahead), so
+//! the lanes' positions drift apart and each keeps its own `t`. Empty blocks
 //! are skipped by the fixed-step loop's skip distances, and the lane then
 //! starts again on the base grid `t₀ + n·step` past them, where the
 //! scalar march restarts at the next block that is not empty. With S0's
@@ -19,11 +21,33 @@ use crate::transfer::LUT_SIZE;
 use crate::volume::Voxel;
 use glam::Vec3;
 
-/// `threshold` in packets: its ranges, and per range the step and the
-/// premultiplied table.
+/// How a `threshold` lane picks its step: by the range of its sample's
+/// value, or by its sample's `lod` class.
+pub(in crate::render) enum Select<'a> {
+    Range(ThresholdParams),
+    Lod(LodSelect<'a>),
+}
+
+/// What a `lod` lane's class reads (`LodRay::class_at`).
+pub(in crate::render) struct LodSelect<'a> {
+    /// Per leaf (the block grid's blocks), its amount of cloud; negative
+    /// where the transfer function makes it transparent (classed sparse).
+    pub amount: &'a [f32],
+    /// The leaves on each axis, and 1 / their edge in cells.
+    pub counts: [usize; 3],
+    pub inv_leaf: f32,
+    /// The contribution at or above which a leaf is `high`.
+    pub threshold: f32,
+    /// Front to back: classed through the opacity in front; back to front
+    /// (summed front to back here) with none, as the scalar pass.
+    pub front: bool,
+}
+
+/// `threshold` (or `lod`) in packets: how a step is picked, and per range
+/// (class) the step and the premultiplied table.
 pub(in crate::render) struct Thr<'a> {
-    pub params: ThresholdParams,
-    /// Per range, the step (world units).
+    pub select: Select<'a>,
+    /// Per range (class), the step (world units).
     pub steps: [f32; 3],
     /// The ranges' premultiplied tables, one after the other (`LUT_SIZE`
     /// rows each).
@@ -83,6 +107,8 @@ mod vector {
     use super::super::vwalk::Rays;
     use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
+    use super::Select;
+    use crate::render::march::ThresholdParams;
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
 
@@ -96,7 +122,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx2,
         "avx2,fma",
         W8<false>,
-        march<SKIP, SHADE, GROUPED>
+        march<SKIP, SHADE, GROUPED, LOD>
     );
     entry!(
         /// [`thr_avx2`] fetching by scalar loads.
@@ -106,7 +132,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx2_loads,
         "avx2,fma",
         W8<true>,
-        march<SKIP, SHADE, GROUPED>
+        march<SKIP, SHADE, GROUPED, LOD>
     );
     entry!(
         /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
@@ -116,7 +142,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx512,
         "avx2,fma,avx512f",
         W16<false>,
-        march<SKIP, SHADE, GROUPED>
+        march<SKIP, SHADE, GROUPED, LOD>
     );
     entry!(
         /// [`thr_avx512`] fetching by scalar loads.
@@ -126,8 +152,53 @@ mod vector {
         pub(in crate::render::packet) thr_avx512_loads,
         "avx2,fma,avx512f",
         W16<true>,
-        march<SKIP, SHADE, GROUPED>
+        march<SKIP, SHADE, GROUPED, LOD>
     );
+
+    /// What `lod`'s classes read in registers: the leaves' grid, and the
+    /// contributions of `high` and `low`.
+    struct Leaves<S: Simd> {
+        last: [S::I; 3],
+        ncx: S::I,
+        ncy: S::I,
+        inv_leaf: S::F,
+        th: S::F,
+        quarter: S::F,
+    }
+
+    impl<S: Simd> Leaves<S> {
+        /// `LodRay::leaf`: the leaf at `p` (clamped into the grid).
+        #[inline(always)]
+        unsafe fn leaf(&self, p: [S::F; 3]) -> S::I {
+            // (No closure: it would not inherit the loop's target
+            // features, and each intrinsic would become a call.)
+            let z = S::splat_i(0);
+            let x = S::min_i(S::max_i(S::to_i(p[0] * self.inv_leaf), z), self.last[0]);
+            let y = S::min_i(S::max_i(S::to_i(p[1] * self.inv_leaf), z), self.last[1]);
+            let w = S::min_i(S::max_i(S::to_i(p[2] * self.inv_leaf), z), self.last[2]);
+            x + S::mullo(self.ncx, y + S::mullo(self.ncy, w))
+        }
+
+        /// `LodRay::class`: 0 (high), 1 (low) or 2 (sparse) by the
+        /// contribution `(1 − a)·am`.
+        #[inline(always)]
+        unsafe fn class(&self, am: S::F, a: S::F) -> S::F {
+            let w = (S::splat(1.0) - a) * am;
+            let c = S::blend(S::ge(w, self.quarter), S::splat(2.0), S::splat(1.0));
+            S::blend(S::ge(w, self.th), c, S::splat(0.0))
+        }
+    }
+
+    /// The step of class `c` (0, 1 or 2).
+    #[inline(always)]
+    unsafe fn pick<S: Simd>(c: S::F, steps: [S::F; 3]) -> S::F {
+        let one = S::splat(1.0);
+        S::blend(
+            S::eq(c, S::splat(0.0)),
+            S::blend(S::eq(c, one), steps[2], steps[1]),
+            steps[0],
+        )
+    }
 
     /// The loop of both widths: lane by lane `march::Threshold::march` with
     /// front-to-back compositing, from the colour and opacity in `st.acc`.
@@ -142,6 +213,7 @@ mod vector {
         const SKIP: bool,
         const SHADE: bool,
         const GROUPED: bool,
+        const LOD: bool,
     >(
         pk: &Packets<'_, T, R>,
         lanes: &[Option<Lane>],
@@ -204,10 +276,32 @@ mod vector {
         let q = thr.tables.as_ptr() as *const f32;
         let sigma = thr.sigma.as_ptr();
         let rows = S::splat_i(4 * LUT_SIZE as i32);
-        let (b0, b1) = (
-            S::splat(thr.params.bounds[0]),
-            S::splat(thr.params.bounds[1]),
-        );
+        // `threshold`'s bounds, or `lod`'s leaves and class thresholds.
+        let none = ThresholdParams::default();
+        let (bounds, ls) = match &thr.select {
+            Select::Range(p) => (p.bounds, None),
+            Select::Lod(l) => (none.bounds, Some(l)),
+        };
+        let (b0, b1) = (S::splat(bounds[0]), S::splat(bounds[1]));
+        let amount = ls.map_or(std::ptr::null(), |l| l.amount.as_ptr());
+        let counts = ls.map_or([1; 3], |l| l.counts);
+        let last = counts.map(|c| S::splat_i(c as i32 - 1));
+        let (ncx, ncy) = (S::splat_i(counts[0] as i32), S::splat_i(counts[1] as i32));
+        let inv_leaf = S::splat(ls.map_or(1.0, |l| l.inv_leaf));
+        let lod_th = ls.map_or(0.0, |l| l.threshold);
+        let (th, quarter) = (S::splat(lod_th), S::splat(0.25 * lod_th));
+        let front = S::from_bits(match ls {
+            Some(l) if l.front => u32::MAX >> (32 - S::N),
+            _ => 0,
+        });
+        let leaves = Leaves::<S> {
+            last,
+            ncx,
+            ncy,
+            inv_leaf,
+            th,
+            quarter,
+        };
         let steps = [
             S::splat(thr.steps[0]),
             S::splat(thr.steps[1]),
@@ -282,15 +376,30 @@ mod vector {
             } else {
                 (vol.sample::<T>(p), samp)
             };
-            // `ThresholdParams::range`: 0 below the first bound, 1 below the
-            // second, else 2 (NaN too).
-            let (lt0, lt1) = (S::lt(v, b0), S::lt(v, b1));
-            let r = S::blend_i(
-                lt0,
-                S::blend_i(lt1, S::splat_i(2), S::splat_i(1)),
-                S::splat_i(0),
-            );
-            let step = S::blend(lt0, S::blend(lt1, steps[2], steps[1]), steps[0]);
+            let (r, step) = if LOD {
+                // `LodRay::class_at`: the leaf's class, or the class of the
+                // leaf one spacing ahead where that is higher.
+                let a = S::keep(front, col[3]);
+                let c = leaves.class(S::gather_f::<4>(amount, leaves.leaf(p)), a);
+                let t2 = t + pick::<S>(c, steps);
+                let p2 = [o[0] + d[0] * t2, o[1] + d[1] * t2, o[2] + d[2] * t2];
+                let c2 = leaves.class(S::gather_f::<4>(amount, leaves.leaf(p2)), a);
+                let c = S::min(c, c2);
+                (S::to_i(c), pick::<S>(c, steps))
+            } else {
+                // `ThresholdParams::range`: 0 below the first bound, 1 below
+                // the second, else 2 (NaN too).
+                let (lt0, lt1) = (S::lt(v, b0), S::lt(v, b1));
+                let r = S::blend_i(
+                    lt0,
+                    S::blend_i(lt1, S::splat_i(2), S::splat_i(1)),
+                    S::splat_i(0),
+                );
+                (
+                    r,
+                    S::blend(lt0, S::blend(lt1, steps[2], steps[1]), steps[0]),
+                )
+            };
             // `Lut::index`: below 0 (or NaN) nothing.
             let mut valid = S::and(samp, S::ge(v, zero));
             let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));

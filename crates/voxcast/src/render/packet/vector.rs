@@ -5,7 +5,6 @@
 
 use super::fetch::{Skips, Vol};
 use super::importance::{ImpState, VImp};
-use super::lod::VLod;
 use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{drain_deferred, store_lanes};
@@ -180,18 +179,13 @@ unsafe fn march<
         Some(p) if R::ON => Some(VWalk::<S>::new(p, st, f.block_counts, f.block_size, rays)),
         _ => None,
     };
-    // `lod`'s walk (its runs are the step-per-block ones).
-    let mut vl = match pk.runs.and_then(|r| r.lod()) {
-        Some(p) if R::ON => Some(VLod::<S>::new(p, st, f.block_counts, f.block_size, rays)),
-        _ => None,
-    };
     // Shading: deferred where the colour is only summed (see `shade`):
     // the fixed step's samples go to the queue as they are composited; a
     // step-per-block march's wait in their lane's slot (a sample's colour
     // is composited at several steps: reuses, the run's end) when the
     // walk is a vector one (whose run ends add to the slot).
     let defer = SHADE && !R::ON;
-    let defer_runs = SHADE && R::ON && (vw.is_some() || vl.is_some());
+    let defer_runs = SHADE && R::ON && vw.is_some();
     let mut rr = RunRegs::<S>::new(kend, S::load(a[10]), S::load(a[11]), defer_runs);
     let stv = S::splat(pk.st);
     let top = S::splat((crate::transfer::LUT_SIZE - 1) as f32);
@@ -261,10 +255,9 @@ unsafe fn march<
             let need = S::and(live, S::ge(kv, rr.kend));
             let bits = S::bits(need);
             if bits != 0 {
-                let (ended, dead) = match (vl.as_mut(), vw.as_mut()) {
-                    (Some(vl), _) => vl.next(pk, need, &mut rr, &mut kv, &mut col),
-                    (None, Some(vw)) => vw.next(pk, need, live, &mut rr, &mut kv, &mut col),
-                    (None, None) => walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col),
+                let (ended, dead) = match vw.as_mut() {
+                    Some(vw) => vw.next(pk, need, live, &mut rr, &mut kv, &mut col),
+                    None => walk_runs::<S, T, R>(pk, st, bits, &mut rr, &mut kv, &mut col),
                 };
                 live = S::but(live, S::or(ended, dead));
                 walked = S::or(walked, ended);

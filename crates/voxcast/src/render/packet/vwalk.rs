@@ -59,7 +59,6 @@ pub(super) struct VBlocks<S: Simd> {
     pub t: S::F,
     pub t_out: S::F,
     o: [S::F; 3],
-    d: [S::F; 3],
     inv_d: [S::F; 3],
     sgn: [S::I; 3],
     up: [S::F; 3],
@@ -116,7 +115,6 @@ impl<S: Simd> VBlocks<S> {
             t: S::load(a[3]),
             t_out: S::load(a[4]),
             o,
-            d,
             inv_d,
             sgn,
             up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
@@ -171,83 +169,6 @@ impl<S: Simd> VBlocks<S> {
             self.tmax[c] = S::blend(mc, self.tmax[c], tc);
         }
         (ta, tb, b, [bx, by, bz])
-    }
-
-    /// The lanes that move on axis `c` (direction not 0).
-    #[inline(always)]
-    unsafe fn moves(&self, c: usize) -> S::M {
-        let sg = self.sgn[c];
-        S::or(S::positive(sg), S::positive(S::splat_i(0) - sg))
-    }
-
-    /// Where a lane crosses the far plane of its block `j` on axis `c`,
-    /// as [`VBlocks::step`] computes it (∞ where it does not move on it).
-    #[inline(always)]
-    unsafe fn crossing(&self, c: usize, j: S::I) -> S::F {
-        let x = ((S::to_f(j) + self.up[c]) * self.size - self.o[c]) * self.inv_d[c];
-        S::blend(self.moves(c), S::splat(f32::INFINITY), x)
-    }
-
-    /// The lanes of `m`, just past block `b3` (the last [`VBlocks::step`]
-    /// gave them), which lies at the centre of an empty cube of blocks
-    /// (those within `r − 1` of it on every axis, `r ≥ 1`), go on to the
-    /// first block past the cube in one move: the state `step` leaves
-    /// after crossing every block of the cube on the ray. That is, `t` at
-    /// the cube's exit `te` (the nearest of its far faces, the far plane
-    /// of block `b3 + sgn·(r − 1)` on each axis), and on each axis the
-    /// block past every plane the ray crosses by `te` with its far
-    /// crossing, both as `step` computes them, so the walk goes on with
-    /// the very values the block-by-block walk would have. Lanes whose ray
-    /// ends inside the cube end their walk (`t = t_out`).
-    ///
-    /// # Safety
-    /// The width's instructions.
-    #[inline(always)]
-    pub unsafe fn jump(&mut self, m: S::M, b3: [S::I; 3], r: S::I) {
-        let one = S::splat_i(1);
-        let mut te = S::splat(f32::INFINITY);
-        for (c, &b) in b3.iter().enumerate() {
-            let far = b + S::mullo(self.sgn[c], r - one);
-            te = S::min(te, self.crossing(c, far));
-        }
-        let over = S::and(m, S::ge(te, self.t_out));
-        self.t = S::blend(over, self.t, self.t_out);
-        let go = S::but(m, over);
-        if S::bits(go) == 0 {
-            return;
-        }
-        let zero = S::splat(0.0);
-        let inv_size = S::splat(1.0) / self.size;
-        for c in 0..3 {
-            let sg = self.sgn[c];
-            let mv = S::and(go, self.moves(c));
-            if S::bits(mv) == 0 {
-                continue;
-            }
-            // The block at the exit's position (on a face, the one the
-            // ray enters), then set right against the crossings where
-            // the position's rounding put it one off: the ray has crossed
-            // the far plane of the block before it and not its own.
-            let q = (self.o[c] + self.d[c] * te) * inv_size;
-            let down = S::lt(self.d[c], zero);
-            let mut j = S::to_i(S::blend(down, S::floor(q), S::ceil(q) - S::splat(1.0)));
-            let crossed = S::ge(te, self.crossing(c, j));
-            j = S::blend_i(crossed, j, j + sg);
-            let before = S::lt(te, self.crossing(c, j - sg));
-            j = S::blend_i(before, j, j - sg);
-            // Past the grid (by a rounding; the ray is inside, `te <
-            // t_out`): the edge block, with no more crossings, as `step`
-            // stays there.
-            let outside = S::or(
-                S::positive(S::splat_i(0) - j),
-                S::positive(j - self.last[c]),
-            );
-            let j = S::min_i(S::max_i(j, S::splat_i(0)), self.last[c]);
-            let tm = S::blend(outside, self.crossing(c, j), S::splat(f32::INFINITY));
-            self.blk[c] = S::blend_i(mv, self.blk[c], j);
-            self.tmax[c] = S::blend(mv, self.tmax[c], tm);
-        }
-        self.t = S::blend(go, self.t, te);
     }
 }
 
