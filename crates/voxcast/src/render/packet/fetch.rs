@@ -92,13 +92,21 @@ impl<S: Simd> Skips<S> {
     /// [`Frame::in_empty_block`]: crate::render::ray::Frame::in_empty_block
     #[inline(always)]
     pub(super) unsafe fn empty_at(&self, p: [S::F; 3], act: S::M) -> S::M {
-        let zero = S::splat(0.0);
-        let b3: [S::I; 3] = std::array::from_fn(|a| {
-            let b = S::to_i(S::floor(S::max(p[a], zero) / self.bs));
-            S::min_i(b, self.top[a])
-        });
-        let b = b3[0] + S::mullo(self.ncx, b3[1] + S::mullo(self.ncy, b3[2]));
+        // (No closure: it would not inherit the loop's target features,
+        // and each intrinsic would become a call.)
+        let [x, y, z] = [self.cell(p, 0), self.cell(p, 1), self.cell(p, 2)];
+        let b = x + S::mullo(self.ncx, y + S::mullo(self.ncy, z));
         S::and(act, S::positive(S::gather::<4>(self.empty, b)))
+    }
+
+    /// The block `⌊p/B⌋` on axis `a`, clamped into the grid.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    unsafe fn cell(&self, p: [S::F; 3], a: usize) -> S::I {
+        let b = S::to_i(S::floor(S::max(p[a], S::splat(0.0)) / self.bs));
+        S::min_i(b, self.top[a])
     }
 
     /// The lanes of `act` whose samples `p` lie in an empty block (the
@@ -436,7 +444,19 @@ fn mid<S: Simd>(l: [S::F; 4], h: [S::F; 4]) -> [S::F; 4] {
 /// The trilinear value at `f` of the corners' differences `a − b`.
 #[inline(always)]
 unsafe fn diff<S: Simd>(a: [S::F; 8], b: [S::F; 8], f: [S::F; 3]) -> S::F {
-    trilinear::<S>(std::array::from_fn(|i| a[i] - b[i]), f)
+    // (Written out: a closure would not inherit the loop's target
+    // features.)
+    let c = [
+        a[0] - b[0],
+        a[1] - b[1],
+        a[2] - b[2],
+        a[3] - b[3],
+        a[4] - b[4],
+        a[5] - b[5],
+        a[6] - b[6],
+        a[7] - b[7],
+    ];
+    trilinear::<S>(c, f)
 }
 
 /// A cell's corners `c[x + 2y + 4z]` from its rows y and y + 1, each

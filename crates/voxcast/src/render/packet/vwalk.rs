@@ -103,12 +103,10 @@ impl<S: Simd> VBlocks<S> {
             a[3][i] = t;
             a[4][i] = t_out;
         }
-        let zero = S::splat(0.0);
-        let sgn = [0, 1, 2].map(|c| {
-            let up = S::gt(d[c], zero);
-            let down = S::lt(d[c], zero);
-            S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
-        });
+        // (No closures: they would not inherit the loop's target features,
+        // and each intrinsic would become a call.)
+        let sgn = [sign::<S>(d[0]), sign::<S>(d[1]), sign::<S>(d[2])];
+        let up = [ups::<S>(d[0]), ups::<S>(d[1]), ups::<S>(d[2])];
         VBlocks {
             blk: [S::load_i(bi[0]), S::load_i(bi[1]), S::load_i(bi[2])],
             tmax: [S::load(a[0]), S::load(a[1]), S::load(a[2])],
@@ -117,9 +115,13 @@ impl<S: Simd> VBlocks<S> {
             o,
             inv_d,
             sgn,
-            up: [0, 1, 2].map(|c| S::keep(S::gt(d[c], zero), S::splat(1.0))),
+            up,
             size: S::splat(size as f32),
-            last: counts.map(|n| S::splat_i(n as i32 - 1)),
+            last: [
+                S::splat_i(counts[0] as i32 - 1),
+                S::splat_i(counts[1] as i32 - 1),
+                S::splat_i(counts[2] as i32 - 1),
+            ],
             ncx: S::splat_i(counts[0] as i32),
             ncy: S::splat_i(counts[1] as i32),
         }
@@ -170,6 +172,26 @@ impl<S: Simd> VBlocks<S> {
         }
         (ta, tb, b, [bx, by, bz])
     }
+}
+
+/// Per lane, the sign of `d` (1, 0 or −1) as an integer.
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+unsafe fn sign<S: Simd>(d: S::F) -> S::I {
+    let zero = S::splat(0.0);
+    let (up, down) = (S::gt(d, zero), S::lt(d, zero));
+    S::blend_i(down, S::keep_i(up, S::splat_i(1)), S::splat_i(-1))
+}
+
+/// Per lane, 1 where `d` is positive, else 0.
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+unsafe fn ups<S: Simd>(d: S::F) -> S::F {
+    S::keep(S::gt(d, S::splat(0.0)), S::splat(1.0))
 }
 
 /// The lanes' run walks: their blocks ([`VBlocks`]); the run each is
