@@ -24,17 +24,14 @@ impl ValueStats {
         /// the same f64 a float sum would give: every partial sum is an
         /// integer below 2⁵³), in parallel chunks that vectorise.
         fn ints<T: Copy + Into<i64> + Ord + Send + Sync>(v: &[T]) -> ValueStats {
-            use rayon::prelude::*;
-            let Some((lo, hi, sum)) = v
-                .par_chunks(1 << 16)
-                .map(|c| {
-                    let lo = c.iter().copied().min().expect("chunks are not empty");
-                    let hi = c.iter().copied().max().expect("chunks are not empty");
-                    let sum: i64 = c.iter().map(|&x| x.into()).sum();
-                    (lo, hi, sum)
-                })
-                .reduce_with(|a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2))
-            else {
+            let per_chunk = |c: &[T]| {
+                let lo = c.iter().copied().min().expect("chunks are not empty");
+                let hi = c.iter().copied().max().expect("chunks are not empty");
+                let sum: i64 = c.iter().map(|&x| x.into()).sum();
+                (lo, hi, sum)
+            };
+            let merge = |a: (T, T, i64), b: (T, T, i64)| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2);
+            let Some((lo, hi, sum)) = chunked(v, per_chunk, merge) else {
                 return ValueStats {
                     min: 0.0,
                     max: 0.0,
@@ -90,6 +87,17 @@ impl ValueStats {
     }
 }
 
+/// `per_chunk` of each chunk of 2¹⁶ values of `v`, in parallel, the
+/// results merged (in any grouping); `None` for no values.
+fn chunked<T: Sync, A: Send>(
+    v: &[T],
+    per_chunk: impl Fn(&[T]) -> A + Sync + Send,
+    merge: impl Fn(A, A) -> A + Sync + Send,
+) -> Option<A> {
+    use rayon::prelude::*;
+    v.par_chunks(1 << 16).map(per_chunk).reduce_with(merge)
+}
+
 /// Counts of the finite values in equal bins over `[lo, hi]`.
 #[derive(Clone, Debug, Serialize)]
 pub struct Histogram {
@@ -100,7 +108,6 @@ pub struct Histogram {
 
 impl Histogram {
     pub(super) fn compute(data: &VoxelData, lo: f32, hi: f32, bins: usize) -> Histogram {
-        use rayon::prelude::*;
         let bins = bins.max(1);
         let width = if hi > lo { hi - lo } else { 1.0 };
         let k = bins as f32 / width;
@@ -112,27 +119,22 @@ impl Histogram {
         fn counted<T: Copy + Sync>(
             v: &[T],
             bins: usize,
-            bin: impl Fn(T) -> Option<usize> + Sync,
+            bin: impl Fn(T) -> Option<usize> + Sync + Send,
         ) -> Vec<u64> {
-            v.par_chunks(1 << 16)
-                .fold(
-                    || vec![0u64; bins],
-                    |mut c, chunk| {
-                        for &x in chunk {
-                            if let Some(b) = bin(x) {
-                                c[b] += 1;
-                            }
-                        }
-                        c
-                    },
-                )
-                .reduce(
-                    || vec![0u64; bins],
-                    |mut a, b| {
-                        a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
-                        a
-                    },
-                )
+            let per_chunk = |chunk: &[T]| {
+                let mut c = vec![0u64; bins];
+                for &x in chunk {
+                    if let Some(b) = bin(x) {
+                        c[b] += 1;
+                    }
+                }
+                c
+            };
+            let merge = |mut a: Vec<u64>, b: Vec<u64>| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                a
+            };
+            chunked(v, per_chunk, merge).unwrap_or_else(|| vec![0u64; bins])
         }
         let counts = match data {
             // Bytes: how many of each value, then each value's count to its
