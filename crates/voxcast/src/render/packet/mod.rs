@@ -52,13 +52,18 @@ use super::surface::{self, SurfaceCtx};
 /// One entry point of a packets' loop (`vector`'s, `threshold`'s): a
 /// function compiled for `$features` with the loop `$march` of width `$w`
 /// inlined into it, the sixteen lanes as packets of `$w`'s width (two of
-/// eight at AVX2), for the const choices `$c` it passes on.
+/// eight at AVX2), for the type choices `$p` (bounded by `$pb`) and the
+/// const choices `$c` it passes on.
 #[cfg(target_arch = "x86_64")]
 macro_rules! entry {
     ($(#[$doc:meta])* $vis:vis $name:ident, $features:literal, $w:ty, $march:ident<$($c:ident),*>) => {
+        entry!($(#[$doc])* $vis $name, $features, $w, $march<[] $($c),*>);
+    };
+    ($(#[$doc:meta])* $vis:vis $name:ident, $features:literal, $w:ty,
+     $march:ident<[$($p:ident: $pb:path),*] $($c:ident),*>) => {
         $(#[$doc])*
         #[target_feature(enable = $features)]
-        $vis unsafe fn $name<T: Voxel, R: Runs<T>, $(const $c: bool),*>(
+        $vis unsafe fn $name<T: Voxel, R: Runs<T>, $($p: $pb,)* $(const $c: bool),*>(
             pk: &Packets<'_, T, R>,
             lanes: &[Option<Lane>; LANES],
             st: &mut State<'_>,
@@ -66,7 +71,7 @@ macro_rules! entry {
             let n = <$w as Simd>::N;
             for h in (0..LANES).step_by(n).map(|a| a..a + n) {
                 if lanes[h.clone()].iter().any(Option::is_some) {
-                    $march::<$w, T, R, $($c),*>(pk, &lanes[h.clone()], &mut st.part(h));
+                    $march::<$w, T, R, $($p,)* $($c),*>(pk, &lanes[h.clone()], &mut st.part(h));
                 }
             }
         }
@@ -657,45 +662,46 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             // `threshold`: skipping, shading and grouped reuse (its own
             // loop).
             // `lod` (its own selection in the same loop) is never grouped.
+            use threshold::{ByLeaf, ByRange};
             let lod = matches!(self.thr.as_ref().map(|t| &t.select), Some(Select::Lod(_)));
             macro_rules! thr {
                 ($f:ident) => {
                     match (lod, choice.0, choice.1, choice.3) {
                         (false, false, false, false) => {
-                            threshold::$f::<T, R, false, false, false, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, false, false, false>(self, lanes, st)
                         }
                         (false, true, false, false) => {
-                            threshold::$f::<T, R, true, false, false, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, true, false, false>(self, lanes, st)
                         }
                         (false, false, true, false) => {
-                            threshold::$f::<T, R, false, true, false, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, false, true, false>(self, lanes, st)
                         }
                         (false, true, true, false) => {
-                            threshold::$f::<T, R, true, true, false, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, true, true, false>(self, lanes, st)
                         }
                         (false, false, false, true) => {
-                            threshold::$f::<T, R, false, false, true, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, false, false, true>(self, lanes, st)
                         }
                         (false, true, false, true) => {
-                            threshold::$f::<T, R, true, false, true, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, true, false, true>(self, lanes, st)
                         }
                         (false, false, true, true) => {
-                            threshold::$f::<T, R, false, true, true, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, false, true, true>(self, lanes, st)
                         }
                         (false, true, true, true) => {
-                            threshold::$f::<T, R, true, true, true, false>(self, lanes, st)
+                            threshold::$f::<T, R, ByRange, true, true, true>(self, lanes, st)
                         }
                         (true, false, false, _) => {
-                            threshold::$f::<T, R, false, false, false, true>(self, lanes, st)
+                            threshold::$f::<T, R, ByLeaf, false, false, false>(self, lanes, st)
                         }
                         (true, true, false, _) => {
-                            threshold::$f::<T, R, true, false, false, true>(self, lanes, st)
+                            threshold::$f::<T, R, ByLeaf, true, false, false>(self, lanes, st)
                         }
                         (true, false, true, _) => {
-                            threshold::$f::<T, R, false, true, false, true>(self, lanes, st)
+                            threshold::$f::<T, R, ByLeaf, false, true, false>(self, lanes, st)
                         }
                         (true, true, true, _) => {
-                            threshold::$f::<T, R, true, true, false, true>(self, lanes, st)
+                            threshold::$f::<T, R, ByLeaf, true, true, false>(self, lanes, st)
                         }
                     }
                 };

@@ -12,7 +12,7 @@
 //! shaded once.
 
 #[cfg(target_arch = "x86_64")]
-pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512, thr_avx512_loads};
+pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512, thr_avx512_loads, ByLeaf, ByRange};
 
 use super::{Lane, Packets, Runs, Setup};
 use crate::render::march::ThresholdParams;
@@ -108,7 +108,6 @@ mod vector {
     use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use super::Select;
-    use crate::render::march::ThresholdParams;
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
 
@@ -122,7 +121,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx2,
         "avx2,fma",
         W8<false>,
-        march<SKIP, SHADE, GROUPED, LOD>
+        march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
     entry!(
         /// [`thr_avx2`] fetching by scalar loads.
@@ -132,7 +131,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx2_loads,
         "avx2,fma",
         W8<true>,
-        march<SKIP, SHADE, GROUPED, LOD>
+        march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
     entry!(
         /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
@@ -142,7 +141,7 @@ mod vector {
         pub(in crate::render::packet) thr_avx512,
         "avx2,fma,avx512f",
         W16<false>,
-        march<SKIP, SHADE, GROUPED, LOD>
+        march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
     entry!(
         /// [`thr_avx512`] fetching by scalar loads.
@@ -152,18 +151,106 @@ mod vector {
         pub(in crate::render::packet) thr_avx512_loads,
         "avx2,fma,avx512f",
         W16<true>,
-        march<SKIP, SHADE, GROUPED, LOD>
+        march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
 
-    /// What `lod`'s classes read in registers: the leaves' grid, and the
-    /// contributions of `high` and `low`.
-    struct Leaves<S: Simd> {
+    /// How a loop's lanes pick their classes: by [`Ranges`] (`threshold`)
+    /// or by [`Leaves`] (`lod`), at each width.
+    pub(in crate::render::packet) trait Chooser {
+        type In<S: Simd>: Choose<S>;
+    }
+
+    /// `threshold`: by the range of the sample's value.
+    pub(in crate::render::packet) struct ByRange;
+    /// `lod`: by the class of the sample's leaf.
+    pub(in crate::render::packet) struct ByLeaf;
+
+    impl Chooser for ByRange {
+        type In<S: Simd> = Ranges<S>;
+    }
+    impl Chooser for ByLeaf {
+        type In<S: Simd> = Leaves<S>;
+    }
+
+    /// A choice of class in registers of width `S`.
+    pub(in crate::render::packet) trait Choose<S: Simd> {
+        /// The registers of the render's selection.
+        ///
+        /// # Safety
+        /// The width's instructions.
+        unsafe fn of(select: &Select<'_>) -> Self;
+        /// Each lane's class (0, 1 or 2) and step (one of `steps`) at `p`
+        /// (`t` along its ray of `rays`), its value `v` seen through the
+        /// opacity `a` in front.
+        ///
+        /// # Safety
+        /// The width's instructions.
+        unsafe fn pick(
+            &self,
+            p: [S::F; 3],
+            t: S::F,
+            v: S::F,
+            a: S::F,
+            rays: &Rays<S>,
+            steps: [S::F; 3],
+        ) -> (S::I, S::F);
+    }
+
+    /// `threshold`'s bounds in registers.
+    pub(in crate::render::packet) struct Ranges<S: Simd> {
+        b0: S::F,
+        b1: S::F,
+    }
+
+    impl<S: Simd> Choose<S> for Ranges<S> {
+        #[inline(always)]
+        unsafe fn of(select: &Select<'_>) -> Self {
+            let Select::Range(p) = select else {
+                unreachable!("threshold's loop by range without ranges")
+            };
+            Ranges {
+                b0: S::splat(p.bounds[0]),
+                b1: S::splat(p.bounds[1]),
+            }
+        }
+
+        /// `ThresholdParams::range`: 0 below the first bound, 1 below the
+        /// second, else 2 (NaN too).
+        #[inline(always)]
+        unsafe fn pick(
+            &self,
+            _p: [S::F; 3],
+            _t: S::F,
+            v: S::F,
+            _a: S::F,
+            _rays: &Rays<S>,
+            steps: [S::F; 3],
+        ) -> (S::I, S::F) {
+            let (lt0, lt1) = (S::lt(v, self.b0), S::lt(v, self.b1));
+            let r = S::blend_i(
+                lt0,
+                S::blend_i(lt1, S::splat_i(2), S::splat_i(1)),
+                S::splat_i(0),
+            );
+            (
+                r,
+                S::blend(lt0, S::blend(lt1, steps[2], steps[1]), steps[0]),
+            )
+        }
+    }
+
+    /// What `lod`'s classes read in registers: the leaves' grid and
+    /// amounts, the contributions of `high` and `low`, and the lanes that
+    /// see the opacity in front.
+    pub(in crate::render::packet) struct Leaves<S: Simd> {
+        amount: *const f32,
         last: [S::I; 3],
         ncx: S::I,
         ncy: S::I,
         inv_leaf: S::F,
         th: S::F,
         quarter: S::F,
+        front: S::M,
     }
 
     impl<S: Simd> Leaves<S> {
@@ -180,18 +267,63 @@ mod vector {
         }
 
         /// `LodRay::class`: 0 (high), 1 (low) or 2 (sparse) by the
-        /// contribution `(1 − a)·am`.
+        /// contribution `(1 − a)·am` of the leaf at `p`.
         #[inline(always)]
-        unsafe fn class(&self, am: S::F, a: S::F) -> S::F {
+        unsafe fn class(&self, p: [S::F; 3], a: S::F) -> S::F {
+            let am = S::gather_f::<4>(self.amount, self.leaf(p));
             let w = (S::splat(1.0) - a) * am;
             let c = S::blend(S::ge(w, self.quarter), S::splat(2.0), S::splat(1.0));
             S::blend(S::ge(w, self.th), c, S::splat(0.0))
         }
     }
 
+    impl<S: Simd> Choose<S> for Leaves<S> {
+        #[inline(always)]
+        unsafe fn of(select: &Select<'_>) -> Self {
+            let Select::Lod(l) = select else {
+                unreachable!("threshold's loop by leaf without leaves")
+            };
+            let c = l.counts;
+            Leaves {
+                amount: l.amount.as_ptr(),
+                last: [
+                    S::splat_i(c[0] as i32 - 1),
+                    S::splat_i(c[1] as i32 - 1),
+                    S::splat_i(c[2] as i32 - 1),
+                ],
+                ncx: S::splat_i(c[0] as i32),
+                ncy: S::splat_i(c[1] as i32),
+                inv_leaf: S::splat(l.inv_leaf),
+                th: S::splat(l.threshold),
+                quarter: S::splat(0.25 * l.threshold),
+                front: S::from_bits(if l.front { u32::MAX >> (32 - S::N) } else { 0 }),
+            }
+        }
+
+        /// `LodRay::class_at`: the leaf's class, or the class of the leaf
+        /// one spacing ahead where that is higher.
+        #[inline(always)]
+        unsafe fn pick(
+            &self,
+            p: [S::F; 3],
+            t: S::F,
+            _v: S::F,
+            a: S::F,
+            &Rays { o, d, .. }: &Rays<S>,
+            steps: [S::F; 3],
+        ) -> (S::I, S::F) {
+            let a = S::keep(self.front, a);
+            let c = self.class(p, a);
+            let t2 = t + step_of::<S>(c, steps);
+            let p2 = [o[0] + d[0] * t2, o[1] + d[1] * t2, o[2] + d[2] * t2];
+            let c = S::min(c, self.class(p2, a));
+            (S::to_i(c), step_of::<S>(c, steps))
+        }
+    }
+
     /// The step of class `c` (0, 1 or 2).
     #[inline(always)]
-    unsafe fn pick<S: Simd>(c: S::F, steps: [S::F; 3]) -> S::F {
+    unsafe fn step_of<S: Simd>(c: S::F, steps: [S::F; 3]) -> S::F {
         let one = S::splat(1.0);
         S::blend(
             S::eq(c, S::splat(0.0)),
@@ -210,10 +342,10 @@ mod vector {
         S: Simd,
         T: Voxel,
         R: Runs<T>,
+        P: Chooser,
         const SKIP: bool,
         const SHADE: bool,
         const GROUPED: bool,
-        const LOD: bool,
     >(
         pk: &Packets<'_, T, R>,
         lanes: &[Option<Lane>],
@@ -277,31 +409,7 @@ mod vector {
         let sigma = thr.sigma.as_ptr();
         let rows = S::splat_i(4 * LUT_SIZE as i32);
         // `threshold`'s bounds, or `lod`'s leaves and class thresholds.
-        let none = ThresholdParams::default();
-        let (bounds, ls) = match &thr.select {
-            Select::Range(p) => (p.bounds, None),
-            Select::Lod(l) => (none.bounds, Some(l)),
-        };
-        let (b0, b1) = (S::splat(bounds[0]), S::splat(bounds[1]));
-        let amount = ls.map_or(std::ptr::null(), |l| l.amount.as_ptr());
-        let counts = ls.map_or([1; 3], |l| l.counts);
-        let last = counts.map(|c| S::splat_i(c as i32 - 1));
-        let (ncx, ncy) = (S::splat_i(counts[0] as i32), S::splat_i(counts[1] as i32));
-        let inv_leaf = S::splat(ls.map_or(1.0, |l| l.inv_leaf));
-        let lod_th = ls.map_or(0.0, |l| l.threshold);
-        let (th, quarter) = (S::splat(lod_th), S::splat(0.25 * lod_th));
-        let front = S::from_bits(match ls {
-            Some(l) if l.front => u32::MAX >> (32 - S::N),
-            _ => 0,
-        });
-        let leaves = Leaves::<S> {
-            last,
-            ncx,
-            ncy,
-            inv_leaf,
-            th,
-            quarter,
-        };
+        let choose = <P::In<S> as Choose<S>>::of(&thr.select);
         let steps = [
             S::splat(thr.steps[0]),
             S::splat(thr.steps[1]),
@@ -376,30 +484,7 @@ mod vector {
             } else {
                 (vol.sample::<T>(p), samp)
             };
-            let (r, step) = if LOD {
-                // `LodRay::class_at`: the leaf's class, or the class of the
-                // leaf one spacing ahead where that is higher.
-                let a = S::keep(front, col[3]);
-                let c = leaves.class(S::gather_f::<4>(amount, leaves.leaf(p)), a);
-                let t2 = t + pick::<S>(c, steps);
-                let p2 = [o[0] + d[0] * t2, o[1] + d[1] * t2, o[2] + d[2] * t2];
-                let c2 = leaves.class(S::gather_f::<4>(amount, leaves.leaf(p2)), a);
-                let c = S::min(c, c2);
-                (S::to_i(c), pick::<S>(c, steps))
-            } else {
-                // `ThresholdParams::range`: 0 below the first bound, 1 below
-                // the second, else 2 (NaN too).
-                let (lt0, lt1) = (S::lt(v, b0), S::lt(v, b1));
-                let r = S::blend_i(
-                    lt0,
-                    S::blend_i(lt1, S::splat_i(2), S::splat_i(1)),
-                    S::splat_i(0),
-                );
-                (
-                    r,
-                    S::blend(lt0, S::blend(lt1, steps[2], steps[1]), steps[0]),
-                )
-            };
+            let (r, step) = choose.pick(p, t, v, col[3], &rays, steps);
             // `Lut::index`: below 0 (or NaN) nothing.
             let mut valid = S::and(samp, S::ge(v, zero));
             let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
