@@ -41,7 +41,7 @@
 //! coarser estimate of the same picture, not a different picture. With every
 //! spacing 1 the samples and their opacities are those of `uniform`.
 
-use super::march::BlockWalker;
+use super::march::{ranged, Pick};
 use super::octree::Octree;
 use super::ray::{Composite, Counters, Frame, Marcher, Sampler, Segment};
 use crate::error::Result;
@@ -178,6 +178,23 @@ impl LodRay {
     }
 }
 
+/// `lod` picks a sample's class before sampling, from where it lies and
+/// the opacity in front ([`LodRay::class_at`]).
+impl Pick for LodRay {
+    #[inline(always)]
+    fn steps(&self) -> &[f32; 3] {
+        &self.steps
+    }
+    #[inline(always)]
+    fn alphas(&self, class: usize) -> &[f32; LUT_SIZE] {
+        &self.alphas[class]
+    }
+    #[inline(always)]
+    fn before(&self, p: Vec3, t: f32, seg: &Segment, a: f32) -> usize {
+        self.class_at(p, t, seg, a)
+    }
+}
+
 /// Marches one ray (see the module's doc): `march::Threshold`'s walk, the
 /// step from each sample its class's spacing.
 impl<T: Voxel> Marcher<T> for LodRay {
@@ -190,51 +207,7 @@ impl<T: Voxel> Marcher<T> for LodRay {
         acc: &mut C,
         n: &mut Counters,
     ) -> bool {
-        let walker = BlockWalker::new(
-            seg.o,
-            seg.d,
-            seg.walk.0,
-            seg.t_out,
-            f.block_size,
-            f.block_counts,
-        )
-        .staying();
-        let t_stop = seg.walk.1;
-        let mut t = seg.t0;
-        let mut count = 0u32;
-        for (ta, tb, b) in walker {
-            if ta >= t_stop {
-                break;
-            }
-            if f.skip_empty && f.empty[b] {
-                continue;
-            }
-            if t < ta {
-                t = seg.t0 + ((ta - seg.t0) / f.step).ceil() * f.step;
-            }
-            while t < tb {
-                n.samples += 1;
-                let p = seg.o + seg.d * t;
-                let c = self.class_at(p, t, seg, acc.opacity());
-                let st = self.steps[c];
-                let sample = smp.at(f, p, t, count, seg.view, n);
-                count += 1;
-                if let Some((i, rgb)) = sample.hit {
-                    // The last sample's stretch ends at `t_end` (the exit
-                    // plus the jitter offset, see `Segment::t_end`).
-                    let alpha = if t + st < seg.t_out {
-                        self.alphas[c][i]
-                    } else {
-                        1.0 - (-f.lut.sigma(i) * (seg.t_end() - t) / f.unit).exp()
-                    };
-                    if alpha > 0.0 && acc.add(rgb, alpha) {
-                        return true;
-                    }
-                }
-                t += st;
-            }
-        }
-        false
+        ranged(self, f, seg, smp, acc, n)
     }
 }
 
