@@ -105,11 +105,14 @@ impl LodParams {
 
 /// What a render of `lod` derives from the octree and the transfer
 /// function: per leaf its amount of cloud, and per spacing class the step
-/// (world units) and the step opacities.
+/// (world units) and the step opacities. Kept with the transfer function's
+/// other tables (`TfTables::lod`) for the renders after it.
 pub(super) struct LodRay {
     /// The leaves: their count on each axis, and 1 / their edge in cells.
     pub counts: [usize; 3],
     pub inv_leaf: f32,
+    /// Per leaf, its amount of cloud; −1 where the transfer function hides
+    /// the whole leaf (classed `sparse` as an amount of 0 would be).
     pub amount: Vec<f32>,
     pub threshold: f32,
     /// Per class, its step in unit lengths (`k · step`) and in world units.
@@ -119,14 +122,24 @@ pub(super) struct LodRay {
 }
 
 impl LodRay {
-    /// The leaves are the block grid's blocks; `step` the base step in
-    /// voxels and `unit` the world length of a voxel.
-    pub fn new(tree: &Octree, lut: &Lut, params: &LodParams, step: f32, unit: f32) -> LodRay {
+    /// The leaves are the block grid's blocks (`empty` per block whether
+    /// the transfer function hides it); `step` the base step in voxels and
+    /// `unit` the world length of a voxel.
+    pub fn new(
+        tree: &Octree,
+        lut: &Lut,
+        empty: &[bool],
+        params: &LodParams,
+        step: f32,
+        unit: f32,
+    ) -> LodRay {
         let b = tree.leaf as f32;
         let amount = tree.levels[0]
             .nodes
             .iter()
-            .map(|n| match Lut::index(n.mean) {
+            .zip(empty)
+            .map(|(n, &e)| match Lut::index(n.mean) {
+                _ if e => -1.0,
                 Some(i) => 1.0 - (-lut.sigma(i) * b).exp(),
                 None => 0.0,
             })

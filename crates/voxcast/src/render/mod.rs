@@ -577,11 +577,11 @@ impl Job<'_> {
             }
             Method::Lod => {
                 let tree = self.tree.expect("the octree is built for lod");
-                let m = lod::LodRay::new(tree, f.lut, &p.lod, p.step, self.unit);
+                let m = self.tft.lod(tree, &p.lod, self.unit);
                 if let Some(out) = self.lod_packets(f, &t, &m) {
                     return out;
                 }
-                self.tiles::<T, C, _, _>(f, &m, Trilinear(sh))
+                self.tiles::<T, C, _, _>(f, &*m, Trilinear(sh))
             }
             // Rendered by `path::render` before a Job is made.
             Method::SingleScatter | Method::Path => None,
@@ -667,17 +667,9 @@ impl Job<'_> {
     ) -> Option<Option<(Image, RenderStats)>> {
         packet::level(self.params.simd)?;
         let tables = self.tft.levels(&m.ratios);
-        // Per leaf its amount of cloud, negative where transparent (the
-        // scalar march's amount there is 0: classed sparse either way).
-        let amount: Vec<f32> = m
-            .amount
-            .iter()
-            .zip(f.empty)
-            .map(|(&a, &e)| if e { -1.0 } else { a })
-            .collect();
         let thr = packet::Thr {
             select: packet::Select::Lod(packet::LodSelect {
-                amount: &amount,
+                amount: &m.amount,
                 counts: m.counts,
                 inv_leaf: m.inv_leaf,
                 threshold: m.threshold,
