@@ -104,7 +104,7 @@ mod vector {
     use super::super::simd::{Simd, W16, W8};
     use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
     use super::super::vector::{queue_slots, shade_deferred};
-    use super::super::vwalk::Rays;
+    use super::super::vwalk::{last_blocks, Rays};
     use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use super::Select;
@@ -286,11 +286,7 @@ mod vector {
             let c = l.counts;
             Leaves {
                 amount: l.amount.as_ptr(),
-                last: [
-                    S::splat_i(c[0] as i32 - 1),
-                    S::splat_i(c[1] as i32 - 1),
-                    S::splat_i(c[2] as i32 - 1),
-                ],
+                last: last_blocks::<S>(c),
                 ncx: S::splat_i(c[0] as i32),
                 ncy: S::splat_i(c[1] as i32),
                 inv_leaf: S::splat(l.inv_leaf),

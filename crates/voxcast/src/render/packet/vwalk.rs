@@ -117,11 +117,7 @@ impl<S: Simd> VBlocks<S> {
             sgn,
             up,
             size: S::splat(size as f32),
-            last: [
-                S::splat_i(counts[0] as i32 - 1),
-                S::splat_i(counts[1] as i32 - 1),
-                S::splat_i(counts[2] as i32 - 1),
-            ],
+            last: last_blocks::<S>(counts),
             ncx: S::splat_i(counts[0] as i32),
             ncy: S::splat_i(counts[1] as i32),
         }
@@ -172,6 +168,20 @@ impl<S: Simd> VBlocks<S> {
         }
         (ta, tb, b, [bx, by, bz])
     }
+}
+
+/// The last block on each axis of a grid of `counts` blocks, in every
+/// lane.
+///
+/// # Safety
+/// The width's instructions.
+#[inline(always)]
+pub(super) unsafe fn last_blocks<S: Simd>(counts: [usize; 3]) -> [S::I; 3] {
+    [
+        S::splat_i(counts[0] as i32 - 1),
+        S::splat_i(counts[1] as i32 - 1),
+        S::splat_i(counts[2] as i32 - 1),
+    ]
 }
 
 /// Per lane, the sign of `d` (1, 0 or −1) as an integer.
