@@ -202,15 +202,7 @@ impl<T: Voxel> Marcher<T> for Stratified<'_> {
         };
         // A sample belongs to the stretch its position lies in, so skipping
         // an empty stretch drops exactly the samples that contribute nothing.
-        let walker = BlockWalker::new(
-            seg.o,
-            seg.d,
-            seg.walk.0,
-            seg.walk.1,
-            f.block_size,
-            f.block_counts,
-        )
-        .staying();
+        let walker = BlockWalker::of_segment(f, seg, seg.walk.1);
         for (ta, tb, b) in walker {
             if f.skip_empty && f.empty[b] {
                 continue;
@@ -304,15 +296,7 @@ impl<T: Voxel> Marcher<T> for Importance<'_> {
         // far: the transmittance expected to reach a block is exp(−depth).
         let beta = BETA * std::f32::consts::LOG2_E;
         let mut tau = 0.0f32;
-        let walker = BlockWalker::new(
-            seg.o,
-            seg.d,
-            seg.walk.0,
-            seg.walk.1,
-            f.block_size,
-            f.block_counts,
-        )
-        .staying();
+        let walker = BlockWalker::of_segment(f, seg, seg.walk.1);
         let stretches = walker.map(|(ta, tb, b)| {
             let blk = self.pdf[b];
             let j = if blk.level < 0.0 {

@@ -66,6 +66,16 @@ pub struct BlockWalker {
 }
 
 impl BlockWalker {
+    /// The ray casters' walk over frame `f`'s blocks of segment `seg`,
+    /// from the start of its walk to `end` ([`BlockWalker::staying`]).
+    pub(in crate::render) fn of_segment<T>(
+        f: &crate::render::ray::Frame<'_, T>,
+        seg: &crate::render::ray::Segment,
+        end: f32,
+    ) -> BlockWalker {
+        BlockWalker::new(seg.o, seg.d, seg.walk.0, end, f.block_size, f.block_counts).staying()
+    }
+
     /// A walk that runs on to `t_out` in the edge block when the ray
     /// leaves the block range on one axis but not the sample box (a
     /// one-voxel axis): the ray casters' walks.

@@ -417,15 +417,7 @@ pub(in crate::render) enum Next {
 impl RunWalk {
     /// The walk of segment `seg` over frame `f`'s blocks.
     pub fn new<T>(f: &Frame<'_, T>, seg: Segment) -> RunWalk {
-        let walker = BlockWalker::new(
-            seg.o,
-            seg.d,
-            seg.walk.0,
-            seg.t_out,
-            f.block_size,
-            f.block_counts,
-        )
-        .staying();
+        let walker = BlockWalker::of_segment(f, &seg, seg.t_out);
         RunWalk {
             seg,
             walker,

@@ -82,15 +82,7 @@ pub(in crate::render) fn ranged<T: Voxel, P: Pick, S: Sampler<T>, C: Composite>(
     c: &mut C,
     n: &mut Counters,
 ) -> bool {
-    let walker = BlockWalker::new(
-        seg.o,
-        seg.d,
-        seg.walk.0,
-        seg.t_out,
-        f.block_size,
-        f.block_counts,
-    )
-    .staying();
+    let walker = BlockWalker::of_segment(f, seg, seg.t_out);
     let t_stop = seg.walk.1;
     let mut t = seg.t0;
     // Samples since the last skip (grouped reuse counts from there).
