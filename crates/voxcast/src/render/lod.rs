@@ -41,12 +41,11 @@
 //! coarser estimate of the same picture, not a different picture. With every
 //! spacing 1 the samples and their opacities are those of `uniform`.
 
-use super::march::{ranged, Pick};
+use super::march::Pick;
 use super::octree::Octree;
-use super::ray::{Composite, Counters, Frame, Marcher, Sampler, Segment};
+use super::ray::Segment;
 use crate::error::Result;
 use crate::transfer::{Lut, LUT_SIZE};
-use crate::volume::Voxel;
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -192,7 +191,9 @@ impl LodRay {
 }
 
 /// `lod` picks a sample's class before sampling, from where it lies and
-/// the opacity in front ([`LodRay::class_at`]).
+/// the opacity in front ([`LodRay::class_at`]), and so marches as every
+/// `Pick` does (`march::Threshold`'s walk, the step from each sample its
+/// class's spacing; see the module's doc).
 impl Pick for LodRay {
     #[inline(always)]
     fn steps(&self) -> &[f32; 3] {
@@ -205,22 +206,6 @@ impl Pick for LodRay {
     #[inline(always)]
     fn before(&self, p: Vec3, t: f32, seg: &Segment, a: f32) -> usize {
         self.class_at(p, t, seg, a)
-    }
-}
-
-/// Marches one ray (see the module's doc): `march::Threshold`'s walk, the
-/// step from each sample its class's spacing.
-impl<T: Voxel> Marcher<T> for LodRay {
-    #[inline(always)]
-    fn march<S: Sampler<T>, C: Composite>(
-        &self,
-        f: &Frame<'_, T>,
-        seg: &Segment,
-        smp: &mut S,
-        acc: &mut C,
-        n: &mut Counters,
-    ) -> bool {
-        ranged(self, f, seg, smp, acc, n)
     }
 }
 

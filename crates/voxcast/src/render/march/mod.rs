@@ -20,7 +20,7 @@ pub(super) use steps::{classified_level, round_log2};
 pub(super) use steps::{
     exp2i, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
 };
-pub(super) use threshold::{ranged, Pick, Threshold};
+pub(super) use threshold::{Pick, Threshold};
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};

@@ -23,7 +23,7 @@ pub(in crate::render) struct Threshold<'a> {
 
 /// How a ranged march picks each sample's class (0, 1 or 2), whose step
 /// and step opacities it then takes.
-pub(in crate::render) trait Pick {
+pub(in crate::render) trait Pick: Sync {
     /// Per class, the step (world units).
     fn steps(&self) -> &[f32; 3];
     /// Per class, the step opacities.
@@ -57,7 +57,9 @@ impl Pick for Threshold<'_> {
     }
 }
 
-impl<T: Voxel> Marcher<T> for Threshold<'_> {
+/// Every [`Pick`] marches one ray the same way, each sample's step that
+/// of its class; true where the ray terminated early.
+impl<T: Voxel, P: Pick> Marcher<T> for P {
     #[inline(always)]
     fn march<S: Sampler<T>, C: Composite>(
         &self,
@@ -67,60 +69,46 @@ impl<T: Voxel> Marcher<T> for Threshold<'_> {
         c: &mut C,
         n: &mut Counters,
     ) -> bool {
-        ranged(self, f, seg, s, c, n)
-    }
-}
-
-/// Marches one ray, each sample's step that of its class (`pick`); true
-/// where the ray terminated early.
-#[inline(always)]
-pub(in crate::render) fn ranged<T: Voxel, P: Pick, S: Sampler<T>, C: Composite>(
-    pick: &P,
-    f: &Frame<'_, T>,
-    seg: &Segment,
-    s: &mut S,
-    c: &mut C,
-    n: &mut Counters,
-) -> bool {
-    let walker = BlockWalker::of_segment(f, seg, seg.t_out);
-    let t_stop = seg.walk.1;
-    let mut t = seg.t0;
-    // Samples since the last skip (grouped reuse counts from there).
-    let mut count = 0u32;
-    for (ta, tb, b) in walker {
-        if ta >= t_stop {
-            break;
-        }
-        if f.skip_empty && f.empty[b] {
-            continue;
-        }
-        if t < ta {
-            t = seg.t0 + ((ta - seg.t0) / f.step).ceil() * f.step;
-            count = 0;
-            s.restart();
-        }
-        while t < tb {
-            n.samples += 1;
-            let p = seg.o + seg.d * t;
-            let pre = pick.before(p, t, seg, c.opacity());
-            let sample = s.at(f, p, t, count, seg.view, n);
-            count += 1;
-            let r = pick.after(pre, sample.value);
-            let st = pick.steps()[r];
-            if let Some((i, rgb)) = sample.hit {
-                // The last sample's stretch ends at `t_end` (the exit
-                // plus the jitter offset, see `Segment::t_end`).
-                let alpha = if t + st < seg.t_out {
-                    pick.alphas(r)[i]
-                } else {
-                    1.0 - (-f.lut.sigma(i) * (seg.t_end() - t) / f.unit).exp()
-                };
-                if alpha > 0.0 && c.add(rgb, alpha) {
-                    return true;
-                }
+        let walker = BlockWalker::of_segment(f, seg, seg.t_out);
+        let t_stop = seg.walk.1;
+        let mut t = seg.t0;
+        // Samples since the last skip (grouped reuse counts from there).
+        let mut count = 0u32;
+        for (ta, tb, b) in walker {
+            if ta >= t_stop {
+                break;
             }
-            t += st;
+            if f.skip_empty && f.empty[b] {
+                continue;
+            }
+            if t < ta {
+                t = seg.t0 + ((ta - seg.t0) / f.step).ceil() * f.step;
+                count = 0;
+                s.restart();
+            }
+            while t < tb {
+                n.samples += 1;
+                let p = seg.o + seg.d * t;
+                let pre = self.before(p, t, seg, c.opacity());
+                let sample = s.at(f, p, t, count, seg.view, n);
+                count += 1;
+                let r = self.after(pre, sample.value);
+                let st = self.steps()[r];
+                if let Some((i, rgb)) = sample.hit {
+                    // The last sample's stretch ends at `t_end` (the exit
+                    // plus the jitter offset, see `Segment::t_end`).
+                    let alpha = if t + st < seg.t_out {
+                        self.alphas(r)[i]
+                    } else {
+                        1.0 - (-f.lut.sigma(i) * (seg.t_end() - t) / f.unit).exp()
+                    };
+                    if alpha > 0.0 && c.add(rgb, alpha) {
+                        return true;
+                    }
+                }
+                t += st;
+            }
         }
+        false
     }
-    false
 }
