@@ -9,7 +9,7 @@ use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{drain_deferred, store_lanes};
 use super::vwalk::{Rays, VWalk};
-use super::walk::{group_heads, walk_runs, RunRegs};
+use super::walk::{group_copies, group_heads, walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::Voxel;
 
@@ -315,6 +315,16 @@ unsafe fn march<
         } else {
             (S::from_bits(0), samp)
         };
+        // Grouped reuse: the samples that follow in the group take this
+        // one's value, so this iteration composites them too (up to two
+        // copies) and the lane steps past them.
+        let copies = if R::ON && GROUPED {
+            let (c1, c2) = group_copies::<S>(&rr, t0, kv, act);
+            next = next + S::keep(c1, one) + S::keep(c2, one);
+            [c1, c2]
+        } else {
+            [S::from_bits(0); 2]
+        };
         if !IMP {
             // Every lane steps on, the ones that ended or terminated too
             // (they are masked out): so the next position does not wait
@@ -425,7 +435,30 @@ unsafe fn march<
         col[1] = col[1] + e[1] * we * tr;
         col[2] = col[2] + e[2] * we * tr;
         col[3] = col[3] + al * wa * tr;
-        let done = S::and(valid, S::ge(col[3], stop));
+        let mut done = S::and(valid, S::ge(col[3], stop));
+        if R::ON && GROUPED && S::bits(copies[0]) != 0 {
+            // The copies, one after the other as their own iterations
+            // would composite them (a copy after the lane terminated is
+            // not a sample).
+            for c in copies {
+                let m = S::but(c, done);
+                if S::bits(m) == 0 {
+                    break;
+                }
+                cnt = S::count(cnt, m);
+                let mv = S::and(m, valid);
+                let tr = one - col[3];
+                if defer_runs {
+                    let w = &mut rr.slot.w;
+                    *w = *w + S::keep(mv, we * tr);
+                }
+                col[0] = col[0] + S::keep(mv, e[0] * we * tr);
+                col[1] = col[1] + S::keep(mv, e[1] * we * tr);
+                col[2] = col[2] + S::keep(mv, e[2] * we * tr);
+                col[3] = col[3] + S::keep(mv, al * wa * tr);
+                done = S::or(done, S::and(mv, S::ge(col[3], stop)));
+            }
+        }
         live = S::but(live, done);
     }
     if !R::ON {

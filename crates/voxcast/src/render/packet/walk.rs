@@ -56,13 +56,49 @@ pub(super) unsafe fn group_heads<S: Simd>(
     act: S::M,
     fresh: &mut S::M,
 ) -> S::M {
+    let heads = S::and(act, S::or(*fresh, divides::<S>(t, k, th1, th2, cap)));
+    *fresh = S::but(*fresh, act);
+    heads
+}
+
+/// The lanes whose count `k` (at `t`) is a multiple of its group size
+/// ([`group_heads`] without the fresh starts).
+#[inline(always)]
+unsafe fn divides<S: Simd>(t: S::F, k: S::F, th1: S::F, th2: S::F, cap: S::F) -> S::M {
     let one = S::splat(1.0);
     let g = one + S::keep(S::gt(t, th1), one) + S::keep(S::gt(t, th2), one);
     let g = S::min(g, cap);
-    let div = S::eq(S::floor(k / g) * g, k);
-    let heads = S::and(act, S::or(*fresh, div));
-    *fresh = S::but(*fresh, act);
-    heads
+    S::eq(S::floor(k / g) * g, k)
+}
+
+/// Of the lanes `act` at sample `k` of their run (`t0 + k·step` on their
+/// rays), those whose next sample continues the group (not a head, and
+/// not the run's last, which waits for its stretch), and of those, the
+/// ones whose next but one does too: the copies of this sample's value
+/// that the same iteration composites ([`RunRegs`]' `stv`, `kend`,
+/// thresholds and cap). A group spans at most four samples (where its
+/// size grows from 2 to 3), so a third copy is left to the next
+/// iteration, which reuses the value as a continuation does.
+#[inline(always)]
+pub(super) unsafe fn group_copies<S: Simd>(
+    rr: &RunRegs<S>,
+    t0: S::F,
+    k: S::F,
+    act: S::M,
+) -> (S::M, S::M) {
+    let one = S::splat(1.0);
+    let last = rr.kend - one;
+    let (k1, k2) = (k + one, k + one + one);
+    let (t1, t2) = (t0 + k1 * rr.stv, t0 + k2 * rr.stv);
+    let c1 = S::but(
+        S::and(act, S::lt(k1, last)),
+        divides::<S>(t1, k1, rr.th1, rr.th2, rr.capv),
+    );
+    let c2 = S::but(
+        S::and(c1, S::lt(k2, last)),
+        divides::<S>(t2, k2, rr.th1, rr.th2, rr.capv),
+    );
+    (c1, c2)
 }
 
 impl<S: Simd> RunRegs<S> {
