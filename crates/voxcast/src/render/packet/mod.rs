@@ -33,8 +33,8 @@
 //! for operation (no fused multiply-adds where the scalar path has none),
 //! so a packet gives the scalar pixels to within the rounding of a few
 //! skipped-block boundaries. The last sample of a ray (its stretch ends at
-//! the volume's exit, not a full step) is composited by the scalar code,
-//! lane by lane.
+//! the volume's exit, not a full step) is composited by the vector loop
+//! too, after the lane's fixed steps, with the stretch's own opacity.
 //!
 //! Dispatch is at run time ([`level`]): x86-64 with AVX-512 F runs the
 //! sixteen lanes in 512-bit registers with mask registers; with AVX2 and
@@ -45,7 +45,6 @@ use super::composite::Weights;
 use super::march::intersect_box;
 use super::optics::over_front;
 use super::ray::{Counters, Frame};
-use super::sample::{evaluate_premul, Flat, Phong};
 use super::shading::BlinnPhong;
 use super::stats::RenderStats;
 use super::surface::{self, SurfaceCtx};
@@ -217,7 +216,8 @@ pub(super) struct Lane {
     /// Samples `k0..k_end` go through the vector loop.
     pub k0: u32,
     pub k_end: u32,
-    /// The last sample, composited with its stretch to `t_end`.
+    /// The last sample, composited with its stretch to `t_end` (by the
+    /// vector loop, after the lane's fixed steps).
     pub last: Option<u32>,
 }
 
@@ -525,12 +525,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         let _ = &mut st;
         let mut n = Counters::default();
         for i in 0..rays.len() {
-            let Some(l) = lanes[i] else { continue };
-            let (mut c, mut a) = (acc[i].truncate(), acc[i].w);
-            let mut terminated = !alive[i];
-            if let (Some(k), false) = (l.last, terminated) {
-                terminated = self.last(&l, k, &mut c, &mut a, &mut n);
+            if lanes[i].is_none() {
+                continue;
             }
+            let (mut c, mut a) = (acc[i].truncate(), acc[i].w);
+            let terminated = !alive[i];
             n.samples += count[i][0] as u64;
             n.interpolations += count[i][2] as u64;
             n.shaded += count[i][1] as u64;
@@ -549,9 +548,10 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     /// from the colour and opacity `acc` holds (premultiplied), skipping
     /// the empty blocks of `empty` when given; `count` gets each lane's
     /// samples, shaded samples and interpolations, `alive` whether it is
-    /// still going (not terminated early). The caller composites a ray's
-    /// last sample. For the out-of-core renderer, whose rays cross brick
-    /// after brick.
+    /// still going (not terminated early). A lane's `last` sample, where
+    /// set, is composited too; the out-of-core renderer, whose rays cross
+    /// brick after brick and which this is for, sets none and composites
+    /// a ray's last sample itself.
     pub fn march_lanes(
         &self,
         lanes: &[Option<Lane>; LANES],
@@ -752,44 +752,6 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 *t = surface::march_tau(self.f, m);
             }
         }
-    }
-
-    /// The last sample of lane `l` (index `k`), composited over its
-    /// stretch to the exit as the scalar march does; true when it ends
-    /// the ray.
-    fn last(&self, l: &Lane, k: u32, c: &mut Vec3, a: &mut f32, n: &mut Counters) -> bool {
-        let f = self.f;
-        let t = l.t0 + k as f32 * self.st;
-        let p = l.o + l.d * t;
-        // Skipped, and not counted, in an empty block (as the block walk
-        // does).
-        if self.empty.is_some() && f.in_empty_block(p.max(Vec3::ZERO)) {
-            return false;
-        }
-        n.samples += 1;
-        let sample = match self.shading {
-            Some(bp) => evaluate_premul(f, &Phong(bp), self.q, p, l.view, n),
-            None => evaluate_premul(f, &Flat, self.q, p, l.view, n),
-        };
-        let Some((e, pa, entry)) = sample else {
-            return false;
-        };
-        if pa <= 0.0 {
-            return false;
-        }
-        let ds = l.t_end.max(t) - t;
-        let alpha = 1.0 - (-f.lut.sigma(entry) * ds / f.unit).exp();
-        if alpha <= 0.0 {
-            return false;
-        }
-        let e = e * (alpha / pa);
-        over_front(
-            c,
-            a,
-            e * self.weights.emission,
-            alpha * self.weights.absorption,
-        );
-        *a >= self.stop
     }
 }
 

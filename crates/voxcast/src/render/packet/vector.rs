@@ -8,7 +8,7 @@ use super::importance::{ImpState, VImp};
 use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{drain_deferred, store_lanes};
-use super::vwalk::{Rays, VWalk};
+use super::vwalk::{exp, Rays, VWalk};
 use super::walk::{group_copies, group_heads, walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::Voxel;
@@ -130,6 +130,9 @@ unsafe fn march<
     let vol = Vol::<S>::of(pk);
     let mut a = [S::Af::default(); 12];
     let (mut k, mut kend) = (S::Af::default(), S::Af::default());
+    // The fixed step's last samples (`Lane::last`) and their stretches' ends.
+    let (mut klast, mut tend) = (S::Af::default(), S::Af::default());
+    let mut last_bits = 0u32;
     let mut live_bits = 0u32;
     for (i, l) in lanes.iter().enumerate() {
         if let Some(l) = l {
@@ -159,6 +162,10 @@ unsafe fn march<
             }
             k[i] = l.k0 as f32;
             kend[i] = l.k_end as f32;
+            if let Some(kl) = l.last {
+                (klast[i], tend[i]) = (kl as f32, l.t_end);
+                last_bits |= 1 << i;
+            }
             live_bits |= 1 << i;
         }
     }
@@ -460,6 +467,46 @@ unsafe fn march<
             }
         }
         live = S::but(live, done);
+    }
+    if !R::ON && !IMP && last_bits != 0 {
+        // Each lane's last sample, over its stretch to the exit: the lanes
+        // still alive composite it after their fixed steps, as the scalar
+        // march's `flush` does (not sampled, and not counted, in an empty
+        // block).
+        let m = S::and(live, S::from_bits(last_bits));
+        let t = t0 + S::load(klast) * stv;
+        let p = [o[0] + d[0] * t, o[1] + d[1] * t, o[2] + d[2] * t];
+        let m = match pk.empty {
+            Some(_) => S::but(m, skips.empty_at(p, m)),
+            None => m,
+        };
+        if S::bits(m) != 0 {
+            cnt = S::count(cnt, m);
+            let v = vol.sample::<T>(p);
+            let valid = S::and(m, S::ge(v, zero));
+            let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
+            let [qr, qg, qb, qa] = S::rows(q, S::sll(idx, 2));
+            let vis = S::and(valid, S::gt(qa, zero));
+            // The stretch's opacity `1 − exp(−σ·Δt/unit)` (`flush_lanes`'s).
+            let sigma = S::gather_f::<4>(f.lut.sigmas().as_ptr(), idx);
+            let ds = S::max(S::load(tend), t) - t;
+            let alpha = one - exp::<S>(zero - sigma * ds / S::splat(f.unit));
+            let show = S::and(vis, S::gt(alpha, zero));
+            let r = alpha / S::blend(vis, one, qa);
+            let tr = one - col[3];
+            if SHADE {
+                cnt_shaded = S::count(cnt_shaded, vis);
+                if dq.push::<S>(show, p, we * tr * r, qa, [qr, qg, qb]) {
+                    shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                }
+            } else {
+                col[0] = col[0] + S::keep(show, qr * r * we * tr);
+                col[1] = col[1] + S::keep(show, qg * r * we * tr);
+                col[2] = col[2] + S::keep(show, qb * r * we * tr);
+            }
+            col[3] = col[3] + S::keep(show, alpha * wa * tr);
+            live = S::but(live, S::and(show, S::ge(col[3], stop)));
+        }
     }
     if !R::ON {
         cnt_interp = cnt;
