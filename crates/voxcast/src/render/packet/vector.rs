@@ -7,8 +7,8 @@ use super::fetch::{Skips, Vol};
 use super::importance::{ImpState, VImp};
 use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
-use super::tail::{drain_deferred, store_lanes};
-use super::vwalk::{exp, Rays, VWalk};
+use super::tail::{composite, drain_deferred, over_stretch, store_lanes};
+use super::vwalk::{Rays, VWalk};
 use super::walk::{group_copies, group_heads, walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::Voxel;
@@ -454,16 +454,14 @@ unsafe fn march<
                 }
                 cnt = S::count(cnt, m);
                 let mv = S::and(m, valid);
-                let tr = one - col[3];
                 if defer_runs {
                     let w = &mut rr.slot.w;
-                    *w = *w + S::keep(mv, we * tr);
+                    *w = *w + S::keep(mv, we * (one - col[3]));
                 }
-                col[0] = col[0] + S::keep(mv, e[0] * we * tr);
-                col[1] = col[1] + S::keep(mv, e[1] * we * tr);
-                col[2] = col[2] + S::keep(mv, e[2] * we * tr);
-                col[3] = col[3] + S::keep(mv, al * wa * tr);
-                done = S::or(done, S::and(mv, S::ge(col[3], stop)));
+                let ev = [S::keep(mv, e[0]), S::keep(mv, e[1]), S::keep(mv, e[2])];
+                let before = live;
+                composite::<S>(&mut col, &mut live, mv, ev, al, [we, wa], stop);
+                done = S::or(done, S::but(before, live));
             }
         }
         live = S::but(live, done);
@@ -485,27 +483,25 @@ unsafe fn march<
             let v = vol.sample::<T>(p);
             let valid = S::and(m, S::ge(v, zero));
             let idx = S::keep_i(valid, S::to_i(S::min(v, one) * top + half));
-            let [qr, qg, qb, qa] = S::rows(q, S::sll(idx, 2));
-            let vis = S::and(valid, S::gt(qa, zero));
-            // The stretch's opacity `1 − exp(−σ·Δt/unit)` (`flush_lanes`'s).
-            let sigma = S::gather_f::<4>(f.lut.sigmas().as_ptr(), idx);
-            let ds = S::max(S::load(tend), t) - t;
-            let alpha = one - exp::<S>(zero - sigma * ds / S::splat(f.unit));
-            let show = S::and(vis, S::gt(alpha, zero));
-            let r = alpha / S::blend(vis, one, qa);
-            let tr = one - col[3];
+            let mut qv = S::rows(q, S::sll(idx, 2));
+            // Transparent at the step: nothing, as the scalar `flush`.
+            let vis = S::and(valid, S::gt(qv[3], zero));
+            let len = S::max(S::load(tend), t) - t;
+            let sigma = f.lut.sigmas().as_ptr();
+            over_stretch::<S>(&mut qv, vis, sigma, idx, len, S::splat(1.0 / f.unit));
+            let [qr, qg, qb, al] = qv;
+            let show = S::and(vis, S::gt(al, zero));
+            let mut e = [zero; 3];
             if SHADE {
                 cnt_shaded = S::count(cnt_shaded, vis);
-                if dq.push::<S>(show, p, we * tr * r, qa, [qr, qg, qb]) {
+                let w = we * (one - col[3]);
+                if dq.push::<S>(show, p, w, al, [qr, qg, qb]) {
                     shade_deferred::<S, T>(&mut dq, &vol, &light, view);
                 }
             } else {
-                col[0] = col[0] + S::keep(show, qr * r * we * tr);
-                col[1] = col[1] + S::keep(show, qg * r * we * tr);
-                col[2] = col[2] + S::keep(show, qb * r * we * tr);
+                e = [S::keep(show, qr), S::keep(show, qg), S::keep(show, qb)];
             }
-            col[3] = col[3] + S::keep(show, alpha * wa * tr);
-            live = S::but(live, S::and(show, S::ge(col[3], stop)));
+            composite::<S>(&mut col, &mut live, show, e, al, [we, wa], stop);
         }
     }
     if !R::ON {
