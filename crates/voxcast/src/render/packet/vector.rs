@@ -431,24 +431,20 @@ unsafe fn march<
             ];
             al = S::zero(is_last, al);
         }
-        // Front to back (`over_front` with the optical model's weights).
-        let tr = one - col[3];
+        // Front to back (`over_front` with the optical model's weights;
+        // `al` is zero outside `valid`).
         if defer_runs {
             // The slot's colour is composited here: it gains the weight.
             let w = &mut rr.slot.w;
-            *w = *w + S::keep(valid, we * tr);
+            *w = *w + S::keep(valid, we * (one - col[3]));
         }
-        col[0] = col[0] + e[0] * we * tr;
-        col[1] = col[1] + e[1] * we * tr;
-        col[2] = col[2] + e[2] * we * tr;
-        col[3] = col[3] + al * wa * tr;
-        let mut done = S::and(valid, S::ge(col[3], stop));
+        composite::<S>(&mut col, &mut live, valid, e, al, [we, wa], stop);
         if R::ON && GROUPED && S::bits(copies[0]) != 0 {
             // The copies, one after the other as their own iterations
             // would composite them (a copy after the lane terminated is
             // not a sample).
             for c in copies {
-                let m = S::but(c, done);
+                let m = S::and(c, live);
                 if S::bits(m) == 0 {
                     break;
                 }
@@ -459,12 +455,9 @@ unsafe fn march<
                     *w = *w + S::keep(mv, we * (one - col[3]));
                 }
                 let ev = [S::keep(mv, e[0]), S::keep(mv, e[1]), S::keep(mv, e[2])];
-                let before = live;
                 composite::<S>(&mut col, &mut live, mv, ev, al, [we, wa], stop);
-                done = S::or(done, S::but(before, live));
             }
         }
-        live = S::but(live, done);
     }
     if !R::ON && !IMP && last_bits != 0 {
         // Each lane's last sample, over its stretch to the exit: the lanes
