@@ -9,7 +9,7 @@ use super::shade::{Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{composite, drain_deferred, over_stretch, store_lanes};
 use super::vwalk::{Rays, VWalk};
-use super::walk::{group_copies, group_heads, walk_runs, RunRegs};
+use super::walk::{walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::Voxel;
 
@@ -309,42 +309,23 @@ unsafe fn march<
             let kf = S::ceil(ke - S::splat(1e-2));
             kfull = S::blend(S::but(act, skip), kfull, kf);
         }
-        // Grouped reuse is worked out only where some lane can group: a
-        // group longer than one sample (a cap above 1) by its third sample
-        // from here (past a threshold of `group_size`, with a step to
-        // spare for the roundings). Elsewhere every sample heads its own
-        // group and has no copies, which the group tests would find too.
-        let grouping = R::ON
-            && GROUPED
-            && S::bits(S::and(
-                S::and(act, S::gt(rr.capv, one)),
-                S::gt(t + S::splat(3.0) * rr.stv, S::min(rr.th1, rr.th2)),
-            )) != 0;
         // A step-per-block march: the run's last sample waits for its
-        // stretch; grouped reuse evaluates only where a group starts.
-        let (is_last, eval) = if R::ON {
+        // stretch; grouped reuse evaluates only where a group starts, and
+        // the samples that follow in the group take its value, so this
+        // iteration composites them too (up to two copies) and the lane
+        // steps past them.
+        let none = S::from_bits(0);
+        let (is_last, eval, copies) = if R::ON {
             let is_last = S::and(act, S::eq(kv, rr.kend - one));
-            let eval = if grouping {
-                group_heads::<S>(t, kv, rr.th1, rr.th2, rr.capv, act, &mut rr.fresh)
+            if GROUPED {
+                let (heads, c) = rr.groups(t, t0, kv, act);
+                next = next + S::keep(c[0], one) + S::keep(c[1], one);
+                (is_last, heads, c)
             } else {
-                if GROUPED {
-                    rr.fresh = S::but(rr.fresh, act);
-                }
-                act
-            };
-            (is_last, eval)
+                (is_last, act, [none; 2])
+            }
         } else {
-            (S::from_bits(0), samp)
-        };
-        // Grouped reuse: the samples that follow in the group take this
-        // one's value, so this iteration composites them too (up to two
-        // copies) and the lane steps past them.
-        let copies = if grouping {
-            let (c1, c2) = group_copies::<S>(&rr, t0, kv, act);
-            next = next + S::keep(c1, one) + S::keep(c2, one);
-            [c1, c2]
-        } else {
-            [S::from_bits(0); 2]
+            (none, samp, [none; 2])
         };
         if !IMP {
             // Every lane steps on, the ones that ended or terminated too

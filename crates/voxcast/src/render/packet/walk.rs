@@ -80,12 +80,7 @@ unsafe fn divides<S: Simd>(t: S::F, k: S::F, th1: S::F, th2: S::F, cap: S::F) ->
 /// size grows from 2 to 3), so a third copy is left to the next
 /// iteration, which reuses the value as a continuation does.
 #[inline(always)]
-pub(super) unsafe fn group_copies<S: Simd>(
-    rr: &RunRegs<S>,
-    t0: S::F,
-    k: S::F,
-    act: S::M,
-) -> (S::M, S::M) {
+unsafe fn group_copies<S: Simd>(rr: &RunRegs<S>, t0: S::F, k: S::F, act: S::M) -> (S::M, S::M) {
     let one = S::splat(1.0);
     let last = rr.kend - one;
     let (k1, k2) = (k + one, k + one + one);
@@ -102,6 +97,28 @@ pub(super) unsafe fn group_copies<S: Simd>(
 }
 
 impl<S: Simd> RunRegs<S> {
+    /// S0's grouped reuse for the lanes `act` at sample `k` of their run
+    /// (`t0 + k·step` on their rays): the lanes whose sample heads a group
+    /// ([`group_heads`]) and the copies of its value that the same
+    /// iteration composites ([`group_copies`]). The group tests run only
+    /// where some lane can group — a cap above 1, and past `group_size`'s
+    /// lower threshold by its third sample from here (a step to spare for
+    /// the roundings); elsewhere every lane heads its own group with no
+    /// copies, as the tests would find.
+    #[inline(always)]
+    pub unsafe fn groups(&mut self, t: S::F, t0: S::F, k: S::F, act: S::M) -> (S::M, [S::M; 2]) {
+        let one = S::splat(1.0);
+        let reach = S::gt(t + S::splat(3.0) * self.stv, S::min(self.th1, self.th2));
+        if S::bits(S::and(S::and(act, S::gt(self.capv, one)), reach)) == 0 {
+            self.fresh = S::but(self.fresh, act);
+            return (act, [S::from_bits(0); 2]);
+        }
+        let (th1, th2, cap) = (self.th1, self.th2, self.capv);
+        let heads = group_heads::<S>(t, k, th1, th2, cap, act, &mut self.fresh);
+        let (c1, c2) = group_copies::<S>(self, t0, k, act);
+        (heads, [c1, c2])
+    }
+
     /// The lanes of `found` take their next run: samples `n0..n1` (`n0`
     /// into `kv`) at step `step` on the tables' level `level` (a whole
     /// number as a float); it starts its groups afresh.
