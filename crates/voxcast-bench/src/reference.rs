@@ -35,7 +35,7 @@ pub fn reference_params(base: &RenderParams) -> RenderParams {
     // Parameters of the other marchers do not shape the reference.
     p.adaptive = Default::default();
     p.threshold = Default::default();
-    p.block_size = RenderParams::default().block_size;
+    p.block_size = None;
     p
 }
 

@@ -333,6 +333,7 @@ pub fn run_cancellable(
                     ssim,
                     simd: st.simd.map(|l| l.name()),
                     skipping_left_out: st.skipping_left_out,
+                    block_size: st.block_size,
                 })
             }
             _ => None,

@@ -179,6 +179,27 @@ fn preamble(r: &BenchReport) -> Vec<String> {
             voxcast::render::SKIP_PAYS * 100.0
         ));
     }
+    // The blocks each method skipped with, where they differ.
+    let mut sizes: Vec<(u32, Vec<&str>)> = Vec::new();
+    for m in &r.methods {
+        let Some(b) = m.measured.as_ref().map(|x| x.block_size).filter(|&b| b > 0) else {
+            continue;
+        };
+        match sizes.iter_mut().find(|s| s.0 == b) {
+            Some(s) => s.1.push(m.name.as_str()),
+            None => sizes.push((b, vec![m.name.as_str()])),
+        }
+    }
+    if sizes.len() > 1 {
+        let parts: Vec<String> = sizes
+            .iter()
+            .map(|(b, names)| format!("{b}³ for {}", names.join(", ")))
+            .collect();
+        lines.push(format!(
+            "Blocks: {} (unset, the marchers that only skip take 4³ on sparse data; --block-size sets one for all).",
+            parts.join("; ")
+        ));
+    }
     if !on_device.is_empty() {
         lines.push(format!(
             "(GPU ms): the compute passes alone, by timestamp queries; the wall time adds writing the parameters, reading the image back and averaging it on the CPU. On the device: {}.",

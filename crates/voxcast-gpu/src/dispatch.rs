@@ -79,7 +79,7 @@ impl GpuRenderer {
             );
             st.lut_tf = Some(tf.clone());
         }
-        let blocks = self.blocks(&mut st, params.block_size as usize);
+        let blocks = self.blocks(&mut st, params.block_size_or_default() as usize);
         if blocks.tf.as_ref() != Some(tf) {
             blocks.empty_flags = blocks.grid.empty_flags(tf);
             let flags: Vec<u32> = blocks.empty_flags.iter().map(|&e| u32::from(e)).collect();
@@ -260,7 +260,7 @@ impl GpuRenderer {
         } else {
             self.pipeline.clone()
         };
-        let blocks = &st.blocks[&(params.block_size as usize)];
+        let blocks = &st.blocks[&(params.block_size_or_default() as usize)];
         let (_, out_px, out_stats, read_px, read_stats) = st.out.as_ref().expect("made above");
         let tex = |binding: u32, slot: usize| wgpu::BindGroupEntry {
             binding,
@@ -400,6 +400,7 @@ impl GpuRenderer {
             device_seconds,
             simd: None,
             skipping_left_out: None,
+            block_size: 0,
         };
         Ok((image, stats))
     }

@@ -61,6 +61,9 @@ fn lod_with_every_spacing_one_is_uniform() {
         let mut u = params(Method::Uniform);
         u.order = order;
         u.jitter = jitter;
+        // `lod`'s leaves are the blocks: `uniform` on the same ones (unset,
+        // it may take finer ones on sparse data, with fewer samples).
+        u.block_size = Some(8);
         let mut l = u.clone();
         l.method = Method::Lod;
         l.lod = LodParams {

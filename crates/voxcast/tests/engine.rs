@@ -531,7 +531,7 @@ fn step_per_block_packets_give_the_scalar_pixels() {
                         grouped,
                         shading,
                         skip_empty,
-                        block_size,
+                        block_size: Some(block_size),
                         ert,
                         jitter,
                         seed: 5,

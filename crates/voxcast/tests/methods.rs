@@ -109,6 +109,9 @@ fn adaptive_with_a_forced_constant_step_is_uniform() {
     let mut p = RenderParams {
         width: 80,
         height: 64,
+        // The blocks adaptive steps with (unset, `uniform` may take finer
+        // ones on sparse data: the same picture, fewer samples).
+        block_size: Some(8),
         // The scalar march, which adaptive's shares bit for bit (the SIMD
         // packets are held to it in tests/engine.rs).
         simd: Simd::Scalar,
@@ -135,6 +138,8 @@ fn adaptive_takes_fewer_samples_at_close_quality() {
     let mut p = RenderParams {
         width: 96,
         height: 96,
+        // Against `uniform` on the same blocks.
+        block_size: Some(8),
         ..Default::default()
     };
     let (reference, su) = draw(&vol, &tf, &view(), &p);
@@ -282,7 +287,7 @@ fn every_block_size_skips_without_changing_pixels() {
     p.skip_empty = true;
     let mut samples = Vec::new();
     for block in [2, 4, 8, 16] {
-        p.block_size = block;
+        p.block_size = Some(block);
         let (img, st) = r.render(&tf, &view(), &p, &no_progress).unwrap();
         let d = max_diff(&full, &img);
         assert!(d <= 1e-6, "block {block}: a pixel moved by {d}");
@@ -291,6 +296,95 @@ fn every_block_size_skips_without_changing_pixels() {
     // Smaller blocks skip more tightly.
     assert!(samples.windows(2).all(|w| w[0] <= w[1]), "{samples:?}");
     assert!(samples[0] < s_full.samples);
-    p.block_size = 1;
+    p.block_size = Some(1);
     assert!(r.render(&tf, &view(), &p, &no_progress).is_err());
+}
+
+/// Unset, the block size is 4 for the marchers that only skip with blocks
+/// where the data is sparse, and 8 otherwise: for the methods that take
+/// their steps, pdf or tree from the blocks, without skipping, and on
+/// dense data. The picture is the one of 8³ blocks.
+#[test]
+fn the_block_size_follows_the_data_where_the_picture_does_not_depend_on_it() {
+    let (vol, tf) = sparse_scene();
+    let s = vol.stats();
+    let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
+    let p = RenderParams {
+        width: 48,
+        height: 40,
+        ..Default::default()
+    };
+    let size = |p: &RenderParams| r.render(&tf, &view(), p, &no_progress).unwrap();
+    for method in [
+        Method::Uniform,
+        Method::Jitter,
+        Method::Stratified,
+        Method::Mc,
+    ] {
+        let p = RenderParams {
+            method,
+            ..p.clone()
+        };
+        let grouped = RenderParams {
+            grouped: true,
+            ..p.clone()
+        };
+        assert_eq!(r.block_size_for(&tf, &grouped), 8, "{method:?}+grouped");
+        assert_eq!(r.block_size_for(&tf, &p), 4, "{method:?}");
+        let (auto, st) = size(&p);
+        assert_eq!(st.block_size, 4, "{method:?}");
+        let (eight, st8) = size(&RenderParams {
+            block_size: Some(8),
+            ..p.clone()
+        });
+        assert_eq!(st8.block_size, 8);
+        let d = max_diff(&auto, &eight);
+        assert!(d <= 1e-6, "{method:?}: a pixel moved by {d}");
+        assert!(st.samples < st8.samples, "{method:?}: {st:?} {st8:?}");
+    }
+    for method in [
+        Method::Adaptive,
+        Method::AdaptiveMax,
+        Method::Threshold,
+        Method::Importance,
+        Method::Lod,
+    ] {
+        let p = RenderParams {
+            method,
+            ..p.clone()
+        };
+        assert_eq!(r.block_size_for(&tf, &p), 8, "{method:?}");
+        assert_eq!(size(&p).1.block_size, 8, "{method:?}");
+    }
+    let noskip = RenderParams {
+        skip_empty: false,
+        ..p.clone()
+    };
+    assert_eq!(r.block_size_for(&tf, &noskip), 8);
+    let given = RenderParams {
+        block_size: Some(16),
+        ..p.clone()
+    };
+    assert_eq!(size(&given).1.block_size, 16);
+    // A dense volume: every block shows, finer blocks save nothing.
+    let dense = Volume::from_fn([40, 36, 30], Vec3::ONE, |i, j, k| {
+        0.5 + 0.4 * ((i as f32 * 0.3).sin() * (j as f32 * 0.2).cos() + (k as f32 * 0.25).sin())
+            / 2.0
+    })
+    .unwrap();
+    let rd = Renderer::new(&dense, [0.0, 1.0]).unwrap();
+    assert_eq!(rd.block_size_for(&tf, &p), 8);
+    // Sparse, but with the finer blocks showing nearly as much: a slab of
+    // zeros a quarter of the volume wide, the rest dense (8³ blocks hide
+    // about a quarter, 4³ barely more).
+    let cut = Volume::from_fn([40, 36, 30], Vec3::ONE, |i, j, k| {
+        if i < 11 {
+            0.0
+        } else {
+            0.7 + 0.2 * ((j as f32 * 0.2).cos() * (k as f32 * 0.25).sin())
+        }
+    })
+    .unwrap();
+    let rc = Renderer::new(&cut, [0.0, 1.0]).unwrap();
+    assert_eq!(rc.block_size_for(&tf, &p), 8);
 }

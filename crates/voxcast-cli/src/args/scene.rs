@@ -201,8 +201,12 @@ pub struct SceneArgs {
     /// Empty-space skipping over fully transparent blocks: on or off (default on).
     #[arg(long, value_name = "on|off", help_heading = "Ray casting")]
     pub skip_empty: Option<String>,
-    /// Edge of the empty-space-skipping blocks in cells (default 8): smaller
-    /// blocks skip more tightly and cost more DDA steps.
+    /// Edge of the empty-space-skipping blocks in cells: smaller blocks skip
+    /// more tightly and cost more DDA steps. By default 8, and 4 for
+    /// uniform, jitter, stratified and mc (not +grouped) where the transfer function
+    /// leaves 4³ blocks showing under 85 % of what 8³ blocks show (sparse
+    /// data; their pictures do not depend on it). The adaptive methods,
+    /// threshold, importance and lod take their steps from the blocks.
     #[arg(long, value_name = "N", help_heading = "Ray casting")]
     pub block_size: Option<u32>,
     /// A start offset per pixel against wood-grain artefacts (rings where a
@@ -445,7 +449,7 @@ impl SceneArgs {
             r.shading = on_off("shading", s)?;
         }
         if let Some(b) = self.block_size {
-            r.block_size = b;
+            r.block_size = Some(b);
         }
         if let Some(s) = &self.skip_empty {
             r.skip_empty = on_off("skip-empty", s)?;

@@ -115,11 +115,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
     outputs.commit()?;
     if !quiet {
         // Where the CPU ray loop ran: the SIMD packets, or the scalar loop.
-        let simd = match (&device, stats.simd) {
+        let mut simd = match (&device, stats.simd) {
             (Device::Cpu, Some(l)) => format!(", SIMD {}", l.name()),
             (Device::Cpu, None) => ", scalar loop".to_string(),
             (Device::Gpu(_), _) => String::new(),
         };
+        if stats.block_size > 0 {
+            simd.push_str(&format!(", blocks {}³", stats.block_size));
+        }
         eprintln!(
             "wrote {} ({}×{}) in {:.3} s on {}{simd}: {} rays, {} samples ({:.1} M/s), {} early-terminated",
             out.display(),

@@ -17,6 +17,11 @@ use rayon::prelude::*;
 /// Default block edge in cells.
 pub const DEFAULT_BLOCK: usize = 8;
 
+/// The finer block edge the CPU renderer takes by default for the marchers
+/// that only skip with blocks, on sparse data
+/// ([`Renderer::block_size_for`](super::Renderer::block_size_for)).
+pub const SPARSE_BLOCK: usize = 4;
+
 /// Per-block value range.
 #[derive(Clone, Debug)]
 pub struct BlockGrid {
@@ -222,8 +227,7 @@ pub(super) fn per_block<R: Send>(
 }
 
 /// Calls `f` with every stored value (not normalised) of the voxels
-/// `lo..=hi`, row by row: the walk the block grid's ranges and the octree's
-/// leaves share.
+/// `lo..=hi`, row by row: the octree's leaves' walk.
 #[inline]
 pub(crate) fn for_each_stored<T: Voxel>(
     grid: &Grid<'_, T>,
@@ -248,23 +252,55 @@ pub struct BuildBlocks {
 
 impl GridVisitor for BuildBlocks {
     type Output = BlockGrid;
+    /// A row of blocks along x at a time (one task each): the elementwise
+    /// minimum and maximum of its voxel rows — long and contiguous, so
+    /// vectorised — then each block's over its stretch of those. The voxels
+    /// are read once per row of blocks they belong to (a face's twice), not
+    /// in short runs of `B + 1` per block: 4³ blocks of the teapot CT build
+    /// in a fraction of the time block by block took (docs/engine.md).
     fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> BlockGrid {
         let b = self.size.max(1);
         let dims = grid.dims();
+        let counts = block_counts(dims, b);
         let (scale, offset) = grid.scale_offset();
-        let range = per_block(dims, b, |lo, hi| {
-            let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
-            for_each_stored(grid, lo, hi, |v| {
-                mn = mn.min(v);
-                mx = mx.max(v);
-            });
-            // Raw stored values normalised at the end (scale > 0).
-            [mn * scale + offset, mx * scale + offset]
-        });
+        // Block `c`'s voxels along an axis of `d`: `c·B ..= min((c+1)·B, d−1)`.
+        let span = move |c: usize, d: usize| (c * b, ((c + 1) * b).min(d - 1));
+        let rows: Vec<Vec<[f32; 2]>> = (0..counts[1] * counts[2])
+            .into_par_iter()
+            .map_init(
+                || (vec![0.0f32; dims[0]], vec![0.0f32; dims[0]]),
+                |(mn, mx), r| {
+                    let ((j0, j1), (k0, k1)) =
+                        (span(r % counts[1], dims[1]), span(r / counts[1], dims[2]));
+                    mn.fill(f32::INFINITY);
+                    mx.fill(f32::NEG_INFINITY);
+                    for k in k0..=k1 {
+                        for j in j0..=j1 {
+                            for ((lo, hi), v) in
+                                mn.iter_mut().zip(mx.iter_mut()).zip(grid.row(j, k))
+                            {
+                                let v = v.to_f32();
+                                *lo = lo.min(v);
+                                *hi = hi.max(v);
+                            }
+                        }
+                    }
+                    (0..counts[0])
+                        .map(|bx| {
+                            let (i0, i1) = span(bx, dims[0]);
+                            let lo = mn[i0..=i1].iter().fold(f32::INFINITY, |m, &v| m.min(v));
+                            let hi = mx[i0..=i1].iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
+                            // Raw stored values normalised at the end (scale > 0).
+                            [lo * scale + offset, hi * scale + offset]
+                        })
+                        .collect()
+                },
+            )
+            .collect();
         BlockGrid {
             size: b,
-            counts: block_counts(dims, b),
-            range,
+            counts,
+            range: rows.concat(),
         }
     }
 }
@@ -484,6 +520,74 @@ mod tests {
     }
     use crate::volume::Volume;
     use glam::Vec3;
+
+    /// [`BuildBlocks`] as it was, one block at a time.
+    struct NaiveBlocks(usize);
+
+    impl GridVisitor for NaiveBlocks {
+        type Output = Vec<[f32; 2]>;
+        fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> Vec<[f32; 2]> {
+            let (scale, offset) = grid.scale_offset();
+            per_block(grid.dims(), self.0, |lo, hi| {
+                let (mut mn, mut mx) = (f32::INFINITY, f32::NEG_INFINITY);
+                for_each_stored(grid, lo, hi, |v| {
+                    mn = mn.min(v);
+                    mx = mx.max(v);
+                });
+                [mn * scale + offset, mx * scale + offset]
+            })
+        }
+    }
+
+    /// The rows-of-blocks build gives every block the range block by block
+    /// gave, bit for bit: thin and odd shapes, u8 and f32 (NaNs included),
+    /// block sizes that divide the cells and that do not.
+    #[test]
+    fn the_block_ranges_are_the_block_by_block_ones() {
+        let v = |i: usize, j: usize, k: usize| {
+            if (i * 7 + j * 3 + k).is_multiple_of(41) {
+                f32::NAN
+            } else {
+                ((i * 37 + j * 11 + k * 5) % 29) as f32 - (i * j) as f32 * 0.37
+            }
+        };
+        for dims in [
+            [1, 1, 1],
+            [2, 1, 3],
+            [3, 4, 1],
+            [19, 11, 7],
+            [33, 9, 17],
+            [17, 17, 17],
+        ] {
+            for b in [2, 4, 8, 16] {
+                let f32s = Volume::from_fn(dims, Vec3::ONE, v).unwrap();
+                let bytes: Vec<u8> = (0..dims[0] * dims[1] * dims[2])
+                    .map(|x| (x * 73 % 251) as u8)
+                    .collect();
+                let u8s = Volume::new(
+                    dims,
+                    Vec3::ONE,
+                    Vec3::ZERO,
+                    crate::volume::VoxelData::U8(bytes.into()),
+                )
+                .unwrap();
+                for vol in [&f32s, &u8s] {
+                    let s = *vol.stats();
+                    let fast = vol.visit(s.min, s.max, BuildBlocks { size: b });
+                    let slow = vol.visit(s.min, s.max, NaiveBlocks(b));
+                    assert_eq!(fast.counts, block_counts(dims, b));
+                    assert_eq!(fast.range.len(), slow.len(), "{dims:?} {b}");
+                    for (x, y) in fast.range.iter().zip(&slow) {
+                        assert_eq!(
+                            x.map(f32::to_bits),
+                            y.map(f32::to_bits),
+                            "{dims:?} {b}: {x:?} {y:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     /// [`BuildMaxGradient`] as it was, one block and one voxel at a time.
     struct NaiveMaxGradient(usize);

@@ -343,8 +343,10 @@ pub struct RenderParams {
     /// Parameters of `threshold`.
     pub threshold: ThresholdParams,
     /// Edge of the blocks for empty-space skipping and the adaptive
-    /// marchers, in cells (2…64).
-    pub block_size: u32,
+    /// marchers, in cells (2…64); `None` (the default): the method's own
+    /// ([`RenderParams::block_size_or_default`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub block_size: Option<u32>,
     /// Samples (passes) per pixel of the stochastic methods, averaged
     /// progressively; each pass draws new random positions.
     pub spp: u32,
@@ -378,7 +380,7 @@ impl Default for RenderParams {
             jitter: true,
             adaptive: AdaptiveParams::default(),
             threshold: ThresholdParams::default(),
-            block_size: blocks::DEFAULT_BLOCK as u32,
+            block_size: None,
             spp: 1,
             lights: Vec::new(),
             medium: medium::MediumParams::default(),
@@ -397,6 +399,35 @@ impl RenderParams {
         } else {
             std::borrow::Cow::Borrowed(&self.lights)
         }
+    }
+
+    /// Whether this render's picture is the same whatever the block size:
+    /// its marcher uses the blocks only to skip empty space (`uniform`,
+    /// `jitter`, `stratified`, `mc`, not grouped), so the block size may
+    /// follow the data ([`SPARSE_BLOCK`]). Grouped reuse ends its groups
+    /// with the blocks' runs, and the adaptive marchers, `threshold`,
+    /// `importance`, `lod` and the physically based methods take steps, a
+    /// pdf, a tree or a majorant from the blocks: they keep
+    /// [`DEFAULT_BLOCK`] (as does the GPU back end, for every method).
+    ///
+    /// [`SPARSE_BLOCK`]: blocks::SPARSE_BLOCK
+    /// [`DEFAULT_BLOCK`]: blocks::DEFAULT_BLOCK
+    pub fn blocks_only_skip(&self) -> bool {
+        !self.grouped
+            && matches!(
+                self.method,
+                Method::Uniform | Method::Jitter | Method::Stratified | Method::Mc
+            )
+    }
+
+    /// The scene's block size, or where it names none
+    /// [`DEFAULT_BLOCK`](blocks::DEFAULT_BLOCK) (8). The CPU renderer
+    /// refines the latter to [`SPARSE_BLOCK`](blocks::SPARSE_BLOCK) (4) for
+    /// the marchers that only skip with blocks where the transfer function
+    /// leaves the finer blocks showing clearly less of the volume
+    /// ([`Renderer::block_size_for`](super::Renderer::block_size_for)).
+    pub fn block_size_or_default(&self) -> u32 {
+        self.block_size.unwrap_or(blocks::DEFAULT_BLOCK as u32)
     }
 
     /// The reference frequency of the adaptive levels for this render's
@@ -495,11 +526,8 @@ impl RenderParams {
                 ),
             );
         }
-        if !(2..=64).contains(&self.block_size) {
-            return bad(
-                "block_size",
-                format!("{}: must be 2…64 cells", self.block_size),
-            );
+        if let Some(b) = self.block_size.filter(|b| !(2..=64).contains(b)) {
+            return bad("block_size", format!("{b}: must be 2…64 cells"));
         }
         if !(1..=1 << 20).contains(&self.spp) {
             return bad(

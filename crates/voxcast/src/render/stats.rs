@@ -39,6 +39,15 @@ pub struct RenderStats {
     /// ([`SKIP_PAYS`](super::SKIP_PAYS)): the share of blocks it hides.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub skipping_left_out: Option<f32>,
+    /// The edge, in cells, of the blocks the CPU marchers skipped with
+    /// ([`Renderer::block_size_for`](super::Renderer::block_size_for));
+    /// 0 where none were used (the GPU, out of core).
+    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    pub block_size: u32,
+}
+
+fn is_zero_u32(n: &u32) -> bool {
+    *n == 0
 }
 
 fn is_zero(n: &u64) -> bool {
@@ -57,6 +66,7 @@ impl RenderStats {
         self.capped_paths += o.capped_paths;
         self.simd = self.simd.or(o.simd);
         self.skipping_left_out = self.skipping_left_out.or(o.skipping_left_out);
+        self.block_size = self.block_size.max(o.block_size);
     }
 
     /// Samples per second of wall time.

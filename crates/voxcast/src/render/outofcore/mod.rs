@@ -727,6 +727,7 @@ impl<'s> OutOfCore<'s> {
             device_seconds: None,
             simd: packets,
             skipping_left_out: None,
+            block_size: 0,
         };
         Ok((pixels, rs, stats))
     }

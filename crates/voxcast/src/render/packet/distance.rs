@@ -42,44 +42,56 @@ pub(in crate::render) fn skip_distances(
 /// The empty blocks' distances of [`skip_distances`] in place: `d` holds
 /// 0 for a block that is not empty (which keeps it) and anything else for
 /// an empty one, and gets the distances.
-fn distances_in_place(d: &mut [i32], counts: [usize; 3]) {
-    for v in d.iter_mut().filter(|v| **v != 0) {
-        *v = FAR;
+///
+/// The passes run on a copy with a border of one block at [`FAR`] all
+/// round, so that every block has its 26 neighbours at fixed offsets and
+/// the loop tests no bounds (the border lowers no distance): 4³ blocks of
+/// a 256³ volume, 262 144 of them, took 34 ms of CPU before
+/// (docs/engine.md).
+fn distances_in_place(d: &mut [i32], [nx, ny, nz]: [usize; 3]) {
+    let [px, py, pz] = [nx + 2, ny + 2, nz + 2];
+    let row = move |y: usize, z: usize| 1 + px * (y + 1 + py * (z + 1));
+    let mut p = vec![FAR; px * py * pz];
+    for z in 0..nz {
+        for y in 0..ny {
+            let (src, at) = (&d[nx * (y + ny * z)..][..nx], row(y, z));
+            for (o, &v) in p[at..at + nx].iter_mut().zip(src) {
+                *o = if v != 0 { FAR } else { 0 };
+            }
+        }
     }
     // Forward: the 13 neighbours before a block in raster order; then
     // backward: the 13 after it.
-    sweep(d, counts, true);
-    sweep(d, counts, false);
+    sweep(&mut p, [nx, ny, nz], true);
+    sweep(&mut p, [nx, ny, nz], false);
+    for z in 0..nz {
+        for y in 0..ny {
+            let at = row(y, z);
+            d[nx * (y + ny * z)..][..nx].copy_from_slice(&p[at..at + nx]);
+        }
+    }
 }
 
-/// One raster pass of the chamfer transform: each block takes the
-/// smallest of its distance and its 13 neighbours' (those before it in
-/// the pass's order) plus one.
+/// One raster pass of the chamfer transform over the bordered copy `d` of
+/// a grid of `[nx, ny, nz]` blocks: each block takes the smallest of its
+/// distance and its 13 neighbours' (those before it in the pass's order)
+/// plus one.
 fn sweep(d: &mut [i32], [nx, ny, nz]: [usize; 3], forward: bool) {
-    let (sign, n) = (
-        if forward { 1 } else { -1 },
-        [nx, ny, nz].map(|c| c as isize),
-    );
+    let [px, py] = [nx + 2, ny + 2];
+    let sign = if forward { 1 } else { -1 };
+    let offsets = BEFORE.map(|(dx, dy, dz)| sign * (dx + px as isize * (dy + py as isize * dz)));
     let ordered = |i: usize, c: usize| if forward { i } else { c - 1 - i };
     for z in (0..nz).map(|i| ordered(i, nz)) {
         for y in (0..ny).map(|i| ordered(i, ny)) {
+            let row = 1 + px * (y + 1 + py * (z + 1));
             for x in (0..nx).map(|i| ordered(i, nx)) {
-                let i = x + nx * (y + ny * z);
+                let i = row + x;
                 if d[i] == 0 {
                     continue;
                 }
                 let mut m = d[i];
-                for (dx, dy, dz) in BEFORE {
-                    let q = [
-                        x as isize + sign * dx,
-                        y as isize + sign * dy,
-                        z as isize + sign * dz,
-                    ];
-                    if (0..3).any(|a| q[a] < 0 || q[a] >= n[a]) {
-                        continue;
-                    }
-                    let j = q[0] as usize + nx * (q[1] as usize + ny * q[2] as usize);
-                    m = m.min(d[j] + 1);
+                for o in offsets {
+                    m = m.min(d[i.wrapping_add_signed(o)] + 1);
                 }
                 d[i] = m;
             }
