@@ -228,8 +228,6 @@ fn unsupported_methods_are_named() {
     }
 }
 
-/// PSNR of the GPU render against the CPU render of `scene` (its own
-/// prepared volume and geometry), and the number of lit CPU pixels.
 /// `p` with the blocks the CPU's render skipped with, so that the GPU
 /// takes the same samples: unset, the CPU may take finer blocks on sparse
 /// data for the marchers that only skip with them (the same picture), and
@@ -243,6 +241,8 @@ fn on_cpu_blocks(p: &RenderParams, cpu: &voxcast::render::RenderStats) -> Render
     }
 }
 
+/// PSNR of the GPU render against the CPU render of `scene` (its own
+/// prepared volume and geometry), and the number of lit CPU pixels.
 fn compare(
     ctx: &Arc<GpuContext>,
     scene: &Scene,

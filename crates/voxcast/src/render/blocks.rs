@@ -521,6 +521,24 @@ mod tests {
     use crate::volume::Volume;
     use glam::Vec3;
 
+    /// Two volumes of `dims`: f32 voxels from `v`, and u8 ones of a
+    /// scrambled ramp.
+    fn f32_and_u8(dims: [usize; 3], v: impl Fn(usize, usize, usize) -> f32) -> [Volume; 2] {
+        let bytes: Vec<u8> = (0..dims[0] * dims[1] * dims[2])
+            .map(|x| (x * 73 % 251) as u8)
+            .collect();
+        [
+            Volume::from_fn(dims, Vec3::ONE, v).unwrap(),
+            Volume::new(
+                dims,
+                Vec3::ONE,
+                Vec3::ZERO,
+                crate::volume::VoxelData::U8(bytes.into()),
+            )
+            .unwrap(),
+        ]
+    }
+
     /// [`BuildBlocks`] as it was, one block at a time.
     struct NaiveBlocks(usize);
 
@@ -560,18 +578,7 @@ mod tests {
             [17, 17, 17],
         ] {
             for b in [2, 4, 8, 16] {
-                let f32s = Volume::from_fn(dims, Vec3::ONE, v).unwrap();
-                let bytes: Vec<u8> = (0..dims[0] * dims[1] * dims[2])
-                    .map(|x| (x * 73 % 251) as u8)
-                    .collect();
-                let u8s = Volume::new(
-                    dims,
-                    Vec3::ONE,
-                    Vec3::ZERO,
-                    crate::volume::VoxelData::U8(bytes.into()),
-                )
-                .unwrap();
-                for vol in [&f32s, &u8s] {
+                for vol in &f32_and_u8(dims, v) {
                     let s = *vol.stats();
                     let fast = vol.visit(s.min, s.max, BuildBlocks { size: b });
                     let slow = vol.visit(s.min, s.max, NaiveBlocks(b));
@@ -628,18 +635,7 @@ mod tests {
         };
         for dims in [[1, 1, 1], [2, 1, 3], [3, 4, 1], [19, 11, 7], [33, 9, 17]] {
             for b in [4, 8] {
-                let f32s = Volume::from_fn(dims, Vec3::ONE, v).unwrap();
-                let bytes: Vec<u8> = (0..dims[0] * dims[1] * dims[2])
-                    .map(|x| (x * 73 % 251) as u8)
-                    .collect();
-                let u8s = Volume::new(
-                    dims,
-                    Vec3::ONE,
-                    Vec3::ZERO,
-                    crate::volume::VoxelData::U8(bytes.into()),
-                )
-                .unwrap();
-                for vol in [&f32s, &u8s] {
+                for vol in &f32_and_u8(dims, v) {
                     let s = *vol.stats();
                     let fast = vol.visit(s.min, s.max, BuildMaxGradient { size: b });
                     let slow = vol.visit(s.min, s.max, NaiveMaxGradient(b));

@@ -226,7 +226,7 @@ impl<'v> Renderer<'v> {
     /// blocks of 4³ showing at most [`FINER_BLOCKS_PAY`] of what the blocks
     /// of 8³ show. Finer blocks skip closer to what shows but cost more
     /// steps of the walk; on sparse data they pay, on dense data they do
-    /// not (docs/engine.md, "Block size"). Builds the grids it compares
+    /// not (docs/engine.md, "Finer blocks where the data is sparse"). Builds the grids it compares
     /// (kept for later renders); the 4³ one only where 8³ blocks hide
     /// enough for skipping to run at all ([`SKIP_PAYS`]).
     pub fn block_size_for(&self, tf: &TransferFunction, params: &RenderParams) -> usize {

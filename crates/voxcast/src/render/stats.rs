@@ -41,7 +41,7 @@ pub struct RenderStats {
     pub skipping_left_out: Option<f32>,
     /// The edge, in cells, of the blocks the CPU marchers skipped with
     /// ([`Renderer::block_size_for`](super::Renderer::block_size_for));
-    /// 0 where none were used (the GPU, out of core).
+    /// 0 where none were (the GPU, out of core, `single-scatter` and `path`).
     #[serde(default, skip_serializing_if = "is_zero_u32")]
     pub block_size: u32,
 }
