@@ -204,6 +204,12 @@ pub(super) fn block_counts(dims: [usize; 3], b: usize) -> [usize; 3] {
     dims.map(|d| d.saturating_sub(1).div_ceil(b).max(1))
 }
 
+/// Block `c`'s voxels along an axis of `d` voxels with blocks of `b` cells:
+/// `c·b ..= min((c+1)·b, d−1)` (the far face shared with the next block).
+fn block_span(c: usize, b: usize, d: usize) -> (usize, usize) {
+    (c * b, ((c + 1) * b).min(d - 1))
+}
+
 /// Runs `f(voxel range lo..=hi per axis)` for every block, in parallel.
 pub(super) fn per_block<R: Send>(
     dims: [usize; 3],
@@ -219,9 +225,8 @@ pub(super) fn per_block<R: Send>(
                 idx / counts[0] % counts[1],
                 idx / (counts[0] * counts[1]),
             ];
-            let lo = bi.map(|c| c * b);
-            let hi = [0, 1, 2].map(|a| ((bi[a] + 1) * b).min(dims[a] - 1));
-            f(lo, hi)
+            let span = [0, 1, 2].map(|a| block_span(bi[a], b, dims[a]));
+            f(span.map(|s| s.0), span.map(|s| s.1))
         })
         .collect()
 }
@@ -256,22 +261,23 @@ impl GridVisitor for BuildBlocks {
     /// minimum and maximum of its voxel rows — long and contiguous, so
     /// vectorised — then each block's over its stretch of those. The voxels
     /// are read once per row of blocks they belong to (a face's twice), not
-    /// in short runs of `B + 1` per block: 4³ blocks of the teapot CT build
-    /// in a fraction of the time block by block took (docs/engine.md).
+    /// in short runs of `B + 1` per block: on a 256³ u8 volume, two
+    /// threads, 17.5 → 3.3 ms for 8³ blocks and 20.8 → 6.3 ms for 4³
+    /// (docs/engine.md).
     fn visit<T: Voxel>(self, grid: &Grid<'_, T>) -> BlockGrid {
         let b = self.size.max(1);
         let dims = grid.dims();
         let counts = block_counts(dims, b);
         let (scale, offset) = grid.scale_offset();
-        // Block `c`'s voxels along an axis of `d`: `c·B ..= min((c+1)·B, d−1)`.
-        let span = move |c: usize, d: usize| (c * b, ((c + 1) * b).min(d - 1));
         let rows: Vec<Vec<[f32; 2]>> = (0..counts[1] * counts[2])
             .into_par_iter()
             .map_init(
                 || (vec![0.0f32; dims[0]], vec![0.0f32; dims[0]]),
                 |(mn, mx), r| {
-                    let ((j0, j1), (k0, k1)) =
-                        (span(r % counts[1], dims[1]), span(r / counts[1], dims[2]));
+                    let ((j0, j1), (k0, k1)) = (
+                        block_span(r % counts[1], b, dims[1]),
+                        block_span(r / counts[1], b, dims[2]),
+                    );
                     mn.fill(f32::INFINITY);
                     mx.fill(f32::NEG_INFINITY);
                     for k in k0..=k1 {
@@ -287,7 +293,7 @@ impl GridVisitor for BuildBlocks {
                     }
                     (0..counts[0])
                         .map(|bx| {
-                            let (i0, i1) = span(bx, dims[0]);
+                            let (i0, i1) = block_span(bx, b, dims[0]);
                             let lo = mn[i0..=i1].iter().fold(f32::INFINITY, |m, &v| m.min(v));
                             let hi = mx[i0..=i1].iter().fold(f32::NEG_INFINITY, |m, &v| m.max(v));
                             // Raw stored values normalised at the end (scale > 0).

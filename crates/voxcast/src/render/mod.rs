@@ -226,25 +226,34 @@ impl<'v> Renderer<'v> {
     /// blocks of 4³ showing at most [`FINER_BLOCKS_PAY`] of what the blocks
     /// of 8³ show. Finer blocks skip closer to what shows but cost more
     /// steps of the walk; on sparse data they pay, on dense data they do
-    /// not (docs/engine.md, "Finer blocks where the data is sparse"). Builds the grids it compares
-    /// (kept for later renders); the 4³ one only where 8³ blocks hide
-    /// enough for skipping to run at all ([`SKIP_PAYS`]).
+    /// not (docs/engine.md, "Finer blocks where the data is sparse").
+    /// Builds the grids it compares (kept for later renders); the 4³ one
+    /// only where 8³ blocks hide enough for skipping to run at all
+    /// ([`SKIP_PAYS`]).
     pub fn block_size_for(&self, tf: &TransferFunction, params: &RenderParams) -> usize {
+        self.derived_for(tf, &params.in_opacity_units(self.volume))
+            .blocks
+            .size
+    }
+
+    /// What [`Renderer::block_size_for`]'s blocks derive, for `params`
+    /// already in opacity units (as the render has them).
+    fn derived_for(&self, tf: &TransferFunction, params: &RenderParams) -> Arc<Derived> {
         if let Some(b) = params.block_size {
-            return b as usize;
+            return self.derived(b as usize);
         }
-        let coarse = blocks::DEFAULT_BLOCK;
+        let coarse = self.derived(blocks::DEFAULT_BLOCK);
         if !(params.skip_empty && params.blocks_only_skip()) {
             return coarse;
         }
-        let step = params.in_opacity_units(self.volume).step;
-        let shown = |size: usize| 1.0 - self.derived(size).tf_tables(tf, step).empty_share;
-        let shown_coarse = shown(coarse);
-        if 1.0 - shown_coarse < SKIP_PAYS {
+        let coarse_tft = coarse.tf_tables(tf, params.step);
+        if !coarse_tft.skipping_pays() {
             return coarse;
         }
-        if shown(blocks::SPARSE_BLOCK) <= FINER_BLOCKS_PAY * shown_coarse {
-            blocks::SPARSE_BLOCK
+        let fine = self.derived(blocks::SPARSE_BLOCK);
+        let shown = |t: &tf_tables::TfTables| 1.0 - t.empty_share;
+        if shown(&fine.tf_tables(tf, params.step)) <= FINER_BLOCKS_PAY * shown(&coarse_tft) {
+            fine
         } else {
             coarse
         }
@@ -278,7 +287,6 @@ impl<'v> Renderer<'v> {
         params.validate_for(self.volume)?;
         camera.validate()?;
         let start = Instant::now();
-        let block_size = self.block_size_for(tf, params);
         let params = &*params.in_opacity_units(self.volume);
         let volume = self.volume;
         let (mut lo, mut hi) = volume.frame_bounds();
@@ -287,7 +295,7 @@ impl<'v> Renderer<'v> {
         }
         let cam = Camera::fit(camera, lo, hi, params.width, params.height);
         let unit = volume.opacity_unit();
-        let derived = self.derived(block_size);
+        let derived = self.derived_for(tf, params);
         let max_gradient: &[f32] =
             if matches!(params.method, Method::AdaptiveMax | Method::Adaptive) {
                 derived.max_gradient.get_or_init(|| {
@@ -464,8 +472,7 @@ impl Job<'_> {
     fn run<T: Voxel>(&self, grid: &Grid<'_, T>) -> Option<(Image, RenderStats)> {
         let p = self.params;
         let (box_lo, box_hi) = self.volume.sample_box();
-        let share = self.tft.empty_share;
-        let skip_empty = p.skip_empty && share >= SKIP_PAYS;
+        let skip_empty = p.skip_empty && self.tft.skipping_pays();
         let frame = Frame {
             grid,
             lut: &self.tft.lut,
@@ -486,7 +493,7 @@ impl Job<'_> {
             Order::FrontToBack => self.shaded::<T, FrontToBack>(&frame),
             Order::BackToFront => self.shaded::<T, BackToFront>(&frame),
         };
-        let left_out = (p.skip_empty && !skip_empty).then_some(share);
+        let left_out = (p.skip_empty && !skip_empty).then_some(self.tft.empty_share);
         out.map(|(image, stats)| {
             let stats = RenderStats {
                 skipping_left_out: left_out,

@@ -42,16 +42,12 @@ pub struct RenderStats {
     /// The edge, in cells, of the blocks the CPU marchers skipped with
     /// ([`Renderer::block_size_for`](super::Renderer::block_size_for));
     /// 0 where none were (the GPU, out of core, `single-scatter` and `path`).
-    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    #[serde(default, skip_serializing_if = "is_zero")]
     pub block_size: u32,
 }
 
-fn is_zero_u32(n: &u32) -> bool {
-    *n == 0
-}
-
-fn is_zero(n: &u64) -> bool {
-    *n == 0
+fn is_zero<T: Default + PartialEq>(n: &T) -> bool {
+    *n == T::default()
 }
 
 impl RenderStats {

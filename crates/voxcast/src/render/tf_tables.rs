@@ -51,6 +51,12 @@ pub(super) struct TfTables {
 type Levels = (Vec<f32>, Arc<Vec<[f32; 4]>>);
 
 impl TfTables {
+    /// Whether the transfer function hides enough of the blocks for
+    /// skipping them to pay for its tests ([`SKIP_PAYS`](super::SKIP_PAYS)).
+    pub fn skipping_pays(&self) -> bool {
+        self.empty_share >= super::SKIP_PAYS
+    }
+
     /// The box of the blocks that are not empty within `lo..hi`, the
     /// volume's sample box ([`BlockGrid::occupied_box`]).
     pub fn occupied(&self, blocks: &BlockGrid, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
