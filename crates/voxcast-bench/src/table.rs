@@ -196,7 +196,7 @@ fn preamble(r: &BenchReport) -> Vec<String> {
             .map(|(b, names)| format!("{b}³ for {}", names.join(", ")))
             .collect();
         lines.push(format!(
-            "Blocks: {} (unset, the marchers that only skip take 4³ on sparse data; --block-size sets one for all).",
+            "Blocks: {} (unset, uniform, jitter, stratified, mc and adaptive+grouped take 4³ on sparse data; --block-size sets one for all).",
             parts.join("; ")
         ));
     }

@@ -230,7 +230,8 @@ fn unsupported_methods_are_named() {
 
 /// `p` with the blocks the CPU's render skipped with, so that the GPU
 /// takes the same samples: unset, the CPU may take finer blocks on sparse
-/// data for the marchers that only skip with them (the same picture), and
+/// data for the marchers that only skip with them (the same picture) and
+/// for `adaptive+grouped` (finer levels), and
 /// the GPU keeps its default.
 fn on_cpu_blocks(p: &RenderParams, cpu: &voxcast::render::RenderStats) -> RenderParams {
     RenderParams {

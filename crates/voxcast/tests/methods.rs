@@ -300,12 +300,13 @@ fn every_block_size_skips_without_changing_pixels() {
     assert!(r.render(&tf, &view(), &p, &no_progress).is_err());
 }
 
-/// Unset, the block size is 4 for the marchers that only skip with blocks
-/// where the data is sparse, and 8 otherwise: for the methods that take
-/// their steps, pdf or tree from the blocks, without skipping, and on
-/// dense data. The picture is the one of 8³ blocks.
+/// Unset, the block size is 4 where the data is sparse for the marchers
+/// that only skip with blocks (the picture is the one of 8³ blocks) and for
+/// `adaptive+grouped` (finer levels, fewer samples), and 8
+/// otherwise: for the methods that take their steps, groups, pdf or tree
+/// from the blocks as measured at 8³, without skipping, and on dense data.
 #[test]
-fn the_block_size_follows_the_data_where_the_picture_does_not_depend_on_it() {
+fn the_block_size_follows_the_data_for_the_marchers_that_only_skip_and_adaptive_grouped() {
     let (vol, tf) = sparse_scene();
     let s = vol.stats();
     let r = Renderer::new(&vol, [s.min, s.max]).unwrap();
@@ -342,8 +343,31 @@ fn the_block_size_follows_the_data_where_the_picture_does_not_depend_on_it() {
         assert!(d <= 1e-6, "{method:?}: a pixel moved by {d}");
         assert!(st.samples < st8.samples, "{method:?}: {st:?} {st8:?}");
     }
+    // `adaptive+grouped`: finer blocks, finer levels, fewer samples; a
+    // picture of its own, whether it skips or not (skipping changes its
+    // cost, not its pixels).
+    let ag = RenderParams {
+        method: Method::Adaptive,
+        grouped: true,
+        ..p.clone()
+    };
+    assert_eq!(r.block_size_for(&tf, &ag), 4);
+    let noskip = RenderParams {
+        skip_empty: false,
+        ..ag.clone()
+    };
+    assert_eq!(r.block_size_for(&tf, &noskip), 4);
+    let (_, st) = size(&ag);
+    assert_eq!(st.block_size, 4);
+    let st8 = size(&RenderParams {
+        block_size: Some(8),
+        ..ag.clone()
+    })
+    .1;
+    assert!(st.samples < st8.samples, "{st:?} {st8:?}");
     for method in [
         Method::Adaptive,
+        Method::AdaptiveS0,
         Method::AdaptiveMax,
         Method::Threshold,
         Method::Importance,

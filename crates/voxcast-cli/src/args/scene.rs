@@ -203,10 +203,11 @@ pub struct SceneArgs {
     pub skip_empty: Option<String>,
     /// Edge of the empty-space-skipping blocks in cells: smaller blocks skip
     /// more tightly and cost more DDA steps. By default 8, and 4 for
-    /// uniform, jitter, stratified and mc (not +grouped) where the transfer function
-    /// leaves 4³ blocks showing under 85 % of what 8³ blocks show (sparse
-    /// data; their pictures do not depend on it). The adaptive methods,
-    /// threshold, importance and lod take their steps from the blocks.
+    /// uniform, jitter, stratified, mc (not +grouped) and adaptive+grouped
+    /// where the transfer function leaves 4³ blocks showing under 85 % of
+    /// what 8³ blocks show (sparse data; the first four's pictures do not
+    /// depend on it, adaptive+grouped's levels get finer). The other
+    /// methods keep 8.
     #[arg(long, value_name = "N", help_heading = "Ray casting")]
     pub block_size: Option<u32>,
     /// A start offset per pixel against wood-grain artefacts (rings where a

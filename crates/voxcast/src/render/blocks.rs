@@ -17,8 +17,8 @@ use rayon::prelude::*;
 /// Default block edge in cells.
 pub const DEFAULT_BLOCK: usize = 8;
 
-/// The finer block edge the CPU renderer takes by default for the marchers
-/// that only skip with blocks, on sparse data
+/// The finer block edge the CPU renderer takes by default on sparse data
+/// for the marchers that only skip with blocks, and `adaptive+grouped`
 /// ([`Renderer::block_size_for`](super::Renderer::block_size_for)).
 pub const SPARSE_BLOCK: usize = 4;
 

@@ -401,31 +401,40 @@ impl RenderParams {
         }
     }
 
-    /// Whether this render's picture is the same whatever the block size:
-    /// its marcher uses the blocks only to skip empty space (`uniform`,
-    /// `jitter`, `stratified`, `mc`, not grouped), so the block size may
-    /// follow the data ([`SPARSE_BLOCK`]). Grouped reuse ends its groups
-    /// with the blocks' runs, and the adaptive marchers, `threshold`,
-    /// `importance`, `lod` and the physically based methods take steps, a
-    /// pdf, a tree or a majorant from the blocks: they keep
+    /// Whether this render may take its block size from the data
+    /// ([`SPARSE_BLOCK`] where the data is sparse): with skipping on, the
+    /// marchers that use the blocks only to skip empty space (`uniform`,
+    /// `jitter`, `stratified`, `mc`, not grouped), whose picture is the same
+    /// whatever the block size; and with skipping on or off (so that
+    /// skipping changes its cost, not its pixels) `adaptive+grouped`, whose
+    /// levels and groups follow the blocks: on sparse data finer blocks
+    /// give it fewer samples and less time at its defaults, and at a given
+    /// PSNR about as much time or less (docs/methods.md, "`adaptive` at equal
+    /// quality, and with finer blocks"). `adaptive` alone, which at a
+    /// given PSNR was slower with them on the teapot, S0's exact formulas
+    /// (`adaptive-s0`, `adaptive-max`), `uniform+grouped`, `threshold`,
+    /// `importance`, `lod` and the physically based methods take steps,
+    /// groups, a pdf, a tree or a majorant from the blocks, and keep
     /// [`DEFAULT_BLOCK`] (as does the GPU back end, for every method).
     ///
     /// [`SPARSE_BLOCK`]: blocks::SPARSE_BLOCK
     /// [`DEFAULT_BLOCK`]: blocks::DEFAULT_BLOCK
-    pub fn blocks_only_skip(&self) -> bool {
-        !self.grouped
-            && matches!(
-                self.method,
-                Method::Uniform | Method::Jitter | Method::Stratified | Method::Mc
-            )
+    pub fn block_size_follows_data(&self) -> bool {
+        match self.method {
+            Method::Uniform | Method::Jitter | Method::Stratified | Method::Mc => {
+                self.skip_empty && !self.grouped
+            }
+            Method::Adaptive => self.grouped,
+            _ => false,
+        }
     }
 
     /// The scene's block size, or where it names none
     /// [`DEFAULT_BLOCK`](blocks::DEFAULT_BLOCK) (8). The CPU renderer
     /// refines the latter to [`SPARSE_BLOCK`](blocks::SPARSE_BLOCK) (4) for
-    /// the marchers that only skip with blocks where the transfer function
-    /// leaves the finer blocks showing clearly less of the volume
-    /// ([`Renderer::block_size_for`](super::Renderer::block_size_for)).
+    /// the marchers of [`RenderParams::block_size_follows_data`] where the
+    /// transfer function leaves the finer blocks showing clearly less of
+    /// the volume ([`Renderer::block_size_for`](super::Renderer::block_size_for)).
     pub fn block_size_or_default(&self) -> u32 {
         self.block_size.unwrap_or(blocks::DEFAULT_BLOCK as u32)
     }
