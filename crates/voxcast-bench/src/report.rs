@@ -155,12 +155,8 @@ pub struct Measured {
     pub skipping_left_out: Option<f32>,
     /// The edge of the blocks the CPU marchers skipped with (0: none, as
     /// on the GPU).
-    #[serde(skip_serializing_if = "is_zero")]
+    #[serde(skip_serializing_if = "voxcast::render::stats::is_zero")]
     pub block_size: u32,
-}
-
-fn is_zero(n: &u32) -> bool {
-    *n == 0
 }
 
 /// One method's row.

@@ -46,7 +46,9 @@ pub struct RenderStats {
     pub block_size: u32,
 }
 
-fn is_zero<T: Default + PartialEq>(n: &T) -> bool {
+/// Whether `n` is its type's default (a serde `skip_serializing_if`
+/// helper, shared with the bench's report).
+pub fn is_zero<T: Default + PartialEq>(n: &T) -> bool {
     *n == T::default()
 }
 
