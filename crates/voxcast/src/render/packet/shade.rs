@@ -153,9 +153,9 @@ impl<S: Simd> Light<S> {
         let flat = S::lt(dot::<S>(gr, gr), self.min_g2);
         let s = self.inv_sp;
         let gw = [gr[0] * s[0], gr[1] * s[1], gr[2] * s[2]];
-        let inv_len = S::splat(1.0) / S::sqrt(dot::<S>(gw, gw));
-        let n = [gw[0] * inv_len, gw[1] * inv_len, gw[2] * inv_len];
-        let ndl = S::abs(dot::<S>(n, view));
+        // |n·view| with n = gw/|gw|: the dot scaled once, by the
+        // reciprocal root (flat lanes, where it may be ∞, are not used).
+        let ndl = S::abs(dot::<S>(gw, view)) * S::rsqrt(dot::<S>(gw, gw));
         let sa = self.spe * powi::<S>(ndl, self.shin) * al;
         let k = self.amb + self.dif * ndl;
         [

@@ -33,6 +33,10 @@ pub(super) trait Simd: Copy {
     unsafe fn floor(a: Self::F) -> Self::F;
     unsafe fn ceil(a: Self::F) -> Self::F;
     unsafe fn sqrt(a: Self::F) -> Self::F;
+    /// `1/√a` for `a > 0`, to within a few ulps: the hardware estimate
+    /// refined by one Newton step (a square root and a division cost
+    /// about ten times as much); ∞ or NaN at 0.
+    unsafe fn rsqrt(a: Self::F) -> Self::F;
     unsafe fn abs(a: Self::F) -> Self::F;
     /// Truncated towards zero.
     unsafe fn to_i(a: Self::F) -> Self::I;

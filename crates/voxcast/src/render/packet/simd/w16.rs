@@ -116,6 +116,14 @@ impl<const LOADS: bool> Simd for W16<LOADS> {
         F16(_mm512_sqrt_ps(a.0))
     }
     #[inline(always)]
+    unsafe fn rsqrt(a: F16) -> F16 {
+        // A 14-bit estimate, then y·(3 − a·y²)/2.
+        let y = _mm512_rsqrt14_ps(a.0);
+        let ay2 = _mm512_mul_ps(_mm512_mul_ps(a.0, y), y);
+        let h = _mm512_mul_ps(y, _mm512_set1_ps(0.5));
+        F16(_mm512_mul_ps(h, _mm512_sub_ps(_mm512_set1_ps(3.0), ay2)))
+    }
+    #[inline(always)]
     unsafe fn abs(a: F16) -> F16 {
         F16(_mm512_abs_ps(a.0))
     }

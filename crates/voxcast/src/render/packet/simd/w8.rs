@@ -138,6 +138,14 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
         F8(_mm256_sqrt_ps(a.0))
     }
     #[inline(always)]
+    unsafe fn rsqrt(a: F8) -> F8 {
+        // A 12-bit estimate, then y·(3 − a·y²)/2.
+        let y = _mm256_rsqrt_ps(a.0);
+        let ay2 = _mm256_mul_ps(_mm256_mul_ps(a.0, y), y);
+        let h = _mm256_mul_ps(y, _mm256_set1_ps(0.5));
+        F8(_mm256_mul_ps(h, _mm256_sub_ps(_mm256_set1_ps(3.0), ay2)))
+    }
+    #[inline(always)]
     unsafe fn abs(a: F8) -> F8 {
         F8(_mm256_and_ps(
             a.0,
