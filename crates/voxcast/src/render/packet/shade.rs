@@ -7,7 +7,7 @@
 //! once, while its colour — the gradient's six trilinear fetches and the
 //! lighting — can wait: the sample goes into a queue with its weight
 //! (transmittance × emission weight), and whenever `N` samples wait, one
-//! full vector shades them and adds each to its own lane's colour. In
+//! full vector (gathered in registers) shades them and adds each to its own lane's colour. In
 //! the lock-step loop the visible lanes of an iteration are about half
 //! of them (54 % on the teapot CT); the queue makes every shading lane
 //! count. The step-per-block marches composite a sample's colour at more
@@ -166,29 +166,35 @@ impl<S: Simd> Light<S> {
     }
 }
 
-/// Room for a vector's worth of waiting samples plus one more push.
-const CAP: usize = 32;
+/// Room for the pushes whose samples wait: fewer than `N` samples in the
+/// queue and a full vector's in the batch being shaded, each push at
+/// least one.
+const CAP: usize = 2 * LANES;
 
-/// The samples waiting for their shading, and what each lane's shaded
-/// samples have added up to so far.
-pub(super) struct Deferred {
-    /// Samples waiting (at most `N − 1` between pushes).
+/// How many vectors a waiting sample is: position (3), weight, opacity,
+/// premultiplied colour (3) and its lane (as a float).
+const PARTS: usize = 9;
+
+/// The samples waiting for their shading, in vector registers (fewer
+/// than `N`, on the low lanes), and what each lane's shaded samples have
+/// added up to so far. The queue never goes through memory: a vector
+/// gathered from several pushes' stores would wait for all of them to
+/// reach the cache before it could be loaded.
+pub(super) struct Deferred<S: Simd> {
+    /// Samples waiting.
     n: usize,
-    p: [[f32; CAP]; 3],
-    /// Transmittance before the sample × the emission weight.
-    w: [f32; CAP],
-    al: [f32; CAP],
-    /// The premultiplied colour.
-    q: [[f32; CAP]; 3],
-    lane: [i32; CAP],
-    /// The lane masks (bits) of the pushes whose samples wait, oldest
-    /// first, in a ring from `head`: a push queues its lanes in increasing
-    /// order, so a batch is a run of pushes, and each push's shaded
-    /// samples go back to their lanes by one expand ([`Deferred::add`]).
-    /// A push split across two batches keeps the lanes still waiting.
+    /// Position (3), weight (transmittance before the sample × the
+    /// emission weight), opacity, premultiplied colour (3), lane.
+    v: [S::F; PARTS],
+    /// The lane masks (bits) of the pushes whose samples wait or are
+    /// being shaded, oldest first, in a ring from `head`: a push queues
+    /// its lanes in increasing order, so a batch is a run of pushes, and
+    /// each push's shaded samples go back to their lanes by one expand
+    /// ([`Deferred::add`]). A push split across two batches keeps the
+    /// lanes still waiting.
     pushes: [u32; CAP],
     head: usize,
-    /// Pushes waiting (at most `CAP − 1`: each has a sample waiting).
+    /// Pushes in the ring.
     np: usize,
     /// Each lane's shaded colour so far.
     pub(super) acc: [[f32; LANES]; 3],
@@ -205,15 +211,34 @@ pub(super) struct Batch<S: Simd> {
     k: usize,
 }
 
-impl Deferred {
-    pub(super) fn new() -> Self {
+impl<S: Simd> Batch<S> {
+    /// The first `k` lanes of `v` (a [`Deferred`]'s parts) as a batch;
+    /// the others masked out (zero weight, lane 0).
+    #[inline(always)]
+    unsafe fn of(v: &[S::F; PARTS], k: usize) -> Self {
+        let m = S::from_bits(((1u64 << k) - 1) as u32);
+        Batch {
+            m,
+            p: [v[0], v[1], v[2]],
+            w: S::keep(m, v[3]),
+            al: v[4],
+            q: [v[5], v[6], v[7]],
+            lane: S::keep_i(m, S::to_i(v[8])),
+            k,
+        }
+    }
+}
+
+impl<S: Simd> Deferred<S> {
+    /// An empty queue.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub(super) unsafe fn new() -> Self {
         Self {
             n: 0,
-            p: [[0.0; CAP]; 3],
-            w: [0.0; CAP],
-            al: [0.0; CAP],
-            q: [[0.0; CAP]; 3],
-            lane: [0; CAP],
+            v: [S::splat(0.0); PARTS],
             pushes: [0; CAP],
             head: 0,
             np: 0,
@@ -221,87 +246,74 @@ impl Deferred {
         }
     }
 
-    /// Queues the samples of lanes `m` (`S::N` ≤ `LANES`); true when a
-    /// vector's worth waits (then [`Deferred::take`] before the next
+    /// Queues the samples of lanes `m` (`S::N` ≤ `LANES`); a vector of
+    /// them when `N` wait (shade it, [`Deferred::add`], before the next
     /// push).
     ///
     /// # Safety
-    /// The width's instructions; fewer than `S::N` samples waiting.
+    /// The width's instructions; the last batch added.
     #[inline(always)]
-    pub(super) unsafe fn push<S: Simd>(
+    pub(super) unsafe fn push(
         &mut self,
         m: S::M,
         p: [S::F; 3],
         w: S::F,
         al: S::F,
         q: [S::F; 3],
-    ) -> bool {
-        debug_assert!(self.n < S::N && 2 * S::N <= CAP);
-        let n = self.n;
-        S::compress_at(self.p[0].as_mut_ptr().add(n), m, p[0]);
-        S::compress_at(self.p[1].as_mut_ptr().add(n), m, p[1]);
-        S::compress_at(self.p[2].as_mut_ptr().add(n), m, p[2]);
-        S::compress_at(self.w.as_mut_ptr().add(n), m, w);
-        S::compress_at(self.al.as_mut_ptr().add(n), m, al);
-        S::compress_at(self.q[0].as_mut_ptr().add(n), m, q[0]);
-        S::compress_at(self.q[1].as_mut_ptr().add(n), m, q[1]);
-        S::compress_at(self.q[2].as_mut_ptr().add(n), m, q[2]);
-        S::compress_at_i(self.lane.as_mut_ptr().add(n), m, S::iota());
+    ) -> Option<Batch<S>> {
         let bits = S::bits(m);
-        if bits != 0 {
-            self.pushes[(self.head + self.np) % CAP] = bits;
-            self.np += 1;
+        if bits == 0 {
+            return None;
         }
-        self.n = n + bits.count_ones() as usize;
-        self.n >= S::N
+        debug_assert!(self.n < S::N && self.np < CAP);
+        self.pushes[(self.head + self.np) % CAP] = bits;
+        self.np += 1;
+        let (n, c, full) = (self.n, bits.count_ones() as usize, S::N);
+        let new = [
+            p[0],
+            p[1],
+            p[2],
+            w,
+            al,
+            q[0],
+            q[1],
+            q[2],
+            S::to_f(S::iota()),
+        ];
+        // The lanes of `m` in order, after the `n` waiting: lane `n + i`
+        // takes `m`'s `i`-th lane.
+        let order = S::set_lanes(m);
+        let iota = S::iota();
+        let idx = S::permute_i(order, iota - S::splat_i(n as i32));
+        let end = (n + c).min(full);
+        let put = S::from_bits(((1u64 << end) - 1) as u32 & !((1u32 << n) - 1));
+        let mut merged = self.v;
+        for (o, &x) in merged.iter_mut().zip(&new) {
+            *o = S::blend(put, *o, S::permute(x, idx));
+        }
+        if n + c < full {
+            self.v = merged;
+            self.n = n + c;
+            return None;
+        }
+        // A full vector: the rest of `m`'s lanes start the next one.
+        let idx = S::permute_i(order, iota + S::splat_i((full - n) as i32));
+        for (o, &x) in self.v.iter_mut().zip(&new) {
+            *o = S::permute(x, idx);
+        }
+        self.n = n + c - full;
+        Some(Batch::of(&merged, full))
     }
 
-    /// Samples waiting.
-    pub(super) fn waiting(&self) -> usize {
-        self.n
-    }
-
-    /// The first `min(waiting, N)` samples as a vector (lanes past them
-    /// masked out: zero weight, lane 0), moving the rest to the
-    /// front.
+    /// The samples still waiting (fewer than `N`) as a batch, emptying
+    /// the queue; `None` when none wait.
     ///
     /// # Safety
     /// The width's instructions.
     #[inline(always)]
-    pub(super) unsafe fn take<S: Simd>(&mut self) -> Batch<S> {
-        let k = self.n.min(S::N);
-        let m = S::from_bits((1u32 << k) - 1);
-        let b = Batch {
-            m,
-            p: [
-                S::load_at(self.p[0].as_ptr()),
-                S::load_at(self.p[1].as_ptr()),
-                S::load_at(self.p[2].as_ptr()),
-            ],
-            w: S::keep(m, S::load_at(self.w.as_ptr())),
-            al: S::load_at(self.al.as_ptr()),
-            q: [
-                S::load_at(self.q[0].as_ptr()),
-                S::load_at(self.q[1].as_ptr()),
-                S::load_at(self.q[2].as_ptr()),
-            ],
-            lane: S::keep_i(m, S::load_at_i(self.lane.as_ptr())),
-            k,
-        };
-        if self.n > S::N {
-            let n = S::N;
-            for a in self.p.iter_mut().chain(&mut self.q) {
-                S::store_at(a.as_mut_ptr(), S::load_at(a.as_ptr().add(n)));
-            }
-            S::store_at(self.w.as_mut_ptr(), S::load_at(self.w.as_ptr().add(n)));
-            S::store_at(self.al.as_mut_ptr(), S::load_at(self.al.as_ptr().add(n)));
-            S::store_at_i(
-                self.lane.as_mut_ptr(),
-                S::load_at_i(self.lane.as_ptr().add(n)),
-            );
-        }
-        self.n -= k;
-        b
+    pub(super) unsafe fn rest(&mut self) -> Option<Batch<S>> {
+        let k = std::mem::take(&mut self.n);
+        (k > 0).then(|| Batch::of(&self.v, k))
     }
 
     /// Adds the batch's shaded colours `e` (premultiplied by opacity),
@@ -311,9 +323,10 @@ impl Deferred {
     /// they were queued.
     ///
     /// # Safety
-    /// The width's instructions; `b` is the last [`Deferred::take`].
+    /// The width's instructions; `b` is the last batch
+    /// [`Deferred::push`] or [`Deferred::rest`] gave.
     #[inline(always)]
-    pub(super) unsafe fn add<S: Simd>(&mut self, b: &Batch<S>, e: [S::F; 3]) {
+    pub(super) unsafe fn add(&mut self, b: &Batch<S>, e: [S::F; 3]) {
         let v = [e[0] * b.w, e[1] * b.w, e[2] * b.w];
         let mut acc = [
             S::load_at(self.acc[0].as_ptr()),
@@ -349,6 +362,105 @@ impl Deferred {
         }
         for (row, &a) in self.acc.iter_mut().zip(&acc) {
             S::store_at(row.as_mut_ptr(), a);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::packet::simd::{W16, W8};
+
+    type Waiting = std::collections::VecDeque<(f32, usize)>;
+
+    /// Takes a batch: its lanes must be the oldest samples waiting (their
+    /// first position coordinate, their lane); adds them to their lanes.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    unsafe fn check<S: Simd>(dq: &mut Deferred<S>, b: Batch<S>, expected: &mut Waiting) {
+        let (p, lane) = (S::store(b.p[0]), S::store(S::to_f(b.lane)));
+        for i in 0..b.k {
+            let (want, l) = expected.pop_front().expect("a sample was pushed");
+            assert_eq!(p[i], want, "sample {i} of the batch");
+            assert_eq!(lane[i], l as f32, "lane of sample {i}");
+        }
+        dq.add(&b, [b.p[0], b.p[0], b.p[0]]);
+    }
+
+    /// Pushes pseudo-random lane masks through a queue: every sample comes
+    /// out once, in the order pushed, a full vector at a time (the rest at
+    /// the end), on its own lane; and each lane's added colour is the sum
+    /// of its own samples.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    unsafe fn queue_keeps_order_and_lanes<S: Simd>() {
+        let mut dq = Deferred::<S>::new();
+        let mut expected = Waiting::new();
+        let mut sums = [0.0f64; LANES];
+        let mut seed = 0x2545_f491_u32;
+        let full = (1u64 << S::N) as u32 - 1;
+        let mut id = 0u32;
+        let mut batches = 0;
+        for round in 0..400 {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            // Some empty pushes, some full ones, mostly partial.
+            let bits = match round % 7 {
+                0 => 0,
+                1 => full,
+                _ => (seed >> 7) & full,
+            };
+            let mut p0 = S::Af::default();
+            for l in 0..S::N {
+                p0[l] = id as f32;
+                if bits >> l & 1 == 1 {
+                    expected.push_back((id as f32, l));
+                    sums[l] += id as f64;
+                }
+                id += 1;
+            }
+            let zero = S::splat(0.0);
+            let p = [S::load(p0), zero, zero];
+            if let Some(b) = dq.push(S::from_bits(bits), p, S::splat(1.0), zero, [zero; 3]) {
+                assert_eq!(b.k, S::N);
+                check::<S>(&mut dq, b, &mut expected);
+                batches += 1;
+            }
+            assert!(expected.len() < S::N, "fewer than a vector waits");
+        }
+        if let Some(b) = dq.rest() {
+            assert_eq!(b.k, expected.len());
+            check::<S>(&mut dq, b, &mut expected);
+        }
+        assert!(expected.is_empty() && dq.rest().is_none());
+        assert!(batches > 50, "{batches} batches");
+        for (l, &s) in sums.iter().enumerate().take(S::N) {
+            assert_eq!(dq.acc[0][l] as f64, s, "lane {l}'s sum");
+        }
+    }
+
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn on_w8() {
+        queue_keeps_order_and_lanes::<W8<false>>();
+    }
+
+    #[target_feature(enable = "avx2,fma,avx512f")]
+    unsafe fn on_w16() {
+        queue_keeps_order_and_lanes::<W16<false>>();
+    }
+
+    #[test]
+    fn the_queue_hands_out_samples_in_order_on_their_lanes_at_each_width_the_cpu_has() {
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has the instructions (checked above).
+            unsafe { on_w8() };
+        }
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: as above.
+            unsafe { on_w16() };
         }
     }
 }

@@ -87,16 +87,15 @@ pub(super) trait Simd: Copy {
 
     /// `N` floats from `p` (unaligned).
     unsafe fn load_at(p: *const f32) -> Self::F;
-    unsafe fn load_at_i(p: *const i32) -> Self::I;
     /// `N` floats to `p` (unaligned).
     unsafe fn store_at(p: *mut f32, v: Self::F);
-    unsafe fn store_at_i(p: *mut i32, v: Self::I);
-    /// The lanes of `m`, in order, to `p` onwards; all `N` floats from
-    /// `p` on are written (those past `m`'s lanes unspecified).
-    unsafe fn compress_at(p: *mut f32, m: Self::M, v: Self::F);
-    unsafe fn compress_at_i(p: *mut i32, m: Self::M, v: Self::I);
-    /// Lane `idx[i]` of `v` in lane `i` (`idx` in `0..N`).
+    /// Lane `idx[i]` of `v` in lane `i` (`idx` taken modulo `N`).
     unsafe fn permute(v: Self::F, idx: Self::I) -> Self::F;
+    /// Lane `idx[i]` of `v` in lane `i` (`idx` taken modulo `N`).
+    unsafe fn permute_i(v: Self::I, idx: Self::I) -> Self::I;
+    /// The indices of `m`'s lanes, in increasing order, in the low lanes
+    /// (the rest unspecified): the permute that compresses by `m`.
+    unsafe fn set_lanes(m: Self::M) -> Self::I;
     /// `0, 1, …, N − 1`.
     unsafe fn iota() -> Self::I;
     /// The permute (for [`Simd::permute`]) that puts lanes `pos`,

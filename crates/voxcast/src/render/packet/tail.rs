@@ -7,7 +7,7 @@
 use super::fetch::Vol;
 use super::shade::{Deferred, Light};
 use super::simd::Simd;
-use super::vector::shade_deferred;
+use super::vector::shade_batch;
 use super::vwalk::exp;
 use super::{Lane, Packets, Runs, State};
 use crate::transfer::LUT_SIZE;
@@ -21,14 +21,14 @@ use glam::Vec4;
 /// The width's instructions.
 #[inline(always)]
 pub(super) unsafe fn drain_deferred<S: Simd, T: Voxel>(
-    dq: &mut Deferred,
+    dq: &mut Deferred<S>,
     col: &mut [S::F; 4],
     vol: &Vol<S>,
     light: &Light<S>,
     view: [S::F; 3],
 ) {
-    while dq.waiting() > 0 {
-        shade_deferred::<S, T>(dq, vol, light, view);
+    if let Some(b) = dq.rest() {
+        shade_batch::<S, T>(dq, b, vol, light, view);
     }
     for (c, acc) in dq.acc.iter().enumerate() {
         col[c] = col[c] + S::load_at(acc.as_ptr());
@@ -138,7 +138,7 @@ pub(super) struct Taker<S: Simd> {
     inv_unit: S::F,
     col: [S::F; 4],
     pub live: S::M,
-    dq: Deferred,
+    dq: Deferred<S>,
     cnt: S::I,
     cnt_shaded: S::I,
 }
@@ -172,7 +172,7 @@ impl<S: Simd> Taker<S> {
             inv_unit: S::splat(1.0 / pk.f.unit),
             col,
             live,
-            dq: Deferred::new(),
+            dq: Deferred::<S>::new(),
             cnt: S::splat_i(0),
             cnt_shaded: S::splat_i(0),
         }
@@ -209,8 +209,8 @@ impl<S: Simd> Taker<S> {
         if self.shading {
             if S::bits(valid) != 0 {
                 let w = self.weights[0] * (one - self.col[3]);
-                if self.dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
-                    shade_deferred::<S, T>(&mut self.dq, &self.vol, &self.light, self.view);
+                if let Some(b) = self.dq.push(valid, p, w, al, [qr, qg, qb]) {
+                    shade_batch::<S, T>(&mut self.dq, b, &self.vol, &self.light, self.view);
                 }
                 self.cnt_shaded = S::count(self.cnt_shaded, valid);
             }

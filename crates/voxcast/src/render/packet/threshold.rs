@@ -103,7 +103,7 @@ mod vector {
     use super::super::shade::{Deferred, Light, Slots};
     use super::super::simd::{Simd, W16, W8};
     use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
-    use super::super::vector::{queue_slots, shade_deferred};
+    use super::super::vector::{queue_slots, shade_batch};
     use super::super::vwalk::{last_blocks, Rays};
     use super::super::walk::group_heads;
     use super::super::{Lane, Packets, Runs, State, LANES};
@@ -418,7 +418,7 @@ mod vector {
         );
         let stop = S::splat(pk.stop);
         let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
-        let mut dq = Deferred::new();
+        let mut dq = Deferred::<S>::new();
         // Skipping: the blocks' skip distances, and the base grid.
         let (stv, inv_st) = (S::splat(pk.st), S::splat(1.0 / pk.st));
         let inv_d = [one / d[0], one / d[1], one / d[2]];
@@ -509,14 +509,14 @@ mod vector {
                 let w = we * (one - col[3]);
                 let alone = S::and(valid, last);
                 slot.w = S::blend(S::but(valid, last), slot.w, slot.w + w);
-                if S::bits(alone) != 0 && dq.push::<S>(alone, slot.p, w, al, [qr, qg, qb]) {
-                    shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                if let Some(b) = dq.push(alone, slot.p, w, al, [qr, qg, qb]) {
+                    shade_batch::<S, T>(&mut dq, b, &vol, &light, view);
                 }
             } else if SHADE {
                 if S::bits(valid) != 0 {
                     let w = we * (one - col[3]);
-                    if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
-                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                    if let Some(b) = dq.push(valid, p, w, al, [qr, qg, qb]) {
+                        shade_batch::<S, T>(&mut dq, b, &vol, &light, view);
                     }
                     cnt_shaded = S::count(cnt_shaded, valid);
                 }

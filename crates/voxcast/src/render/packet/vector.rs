@@ -5,7 +5,7 @@
 
 use super::fetch::{Skips, Vol};
 use super::importance::{ImpState, VImp};
-use super::shade::{Deferred, Light, Slots};
+use super::shade::{Batch, Deferred, Light, Slots};
 use super::simd::{Simd, W16, W8};
 use super::tail::{composite, drain_deferred, over_stretch, store_lanes};
 use super::vwalk::{Rays, VWalk};
@@ -13,19 +13,19 @@ use super::walk::{walk_runs, RunRegs};
 use super::{Lane, Packets, Runs, State, LANES};
 use crate::volume::Voxel;
 
-/// Shades a vector of the samples waiting in `dq` (`view`: the lanes'
-/// view directions) and adds them to their lanes.
+/// Shades a batch of samples from `dq` (`view`: the lanes' view
+/// directions) and adds them to their lanes.
 ///
 /// # Safety
-/// The width's instructions.
+/// The width's instructions; `b` is the last batch `dq` gave.
 #[inline(always)]
-pub(super) unsafe fn shade_deferred<S: Simd, T: Voxel>(
-    dq: &mut Deferred,
+pub(super) unsafe fn shade_batch<S: Simd, T: Voxel>(
+    dq: &mut Deferred<S>,
+    b: Batch<S>,
     vol: &Vol<S>,
     light: &Light<S>,
     view: [S::F; 3],
 ) {
-    let b = dq.take::<S>();
     let gr = vol.gradient_cells::<T>(b.p, b.m);
     let v = [
         S::permute(view[0], b.lane),
@@ -33,25 +33,25 @@ pub(super) unsafe fn shade_deferred<S: Simd, T: Voxel>(
         S::permute(view[2], b.lane),
     ];
     let e = light.shade(gr, b.q, b.al, v);
-    dq.add::<S>(&b, e);
+    dq.add(&b, e);
 }
 
 /// Queues the slots of lanes `m` ([`Slots`]), shading a vector when one
 /// is full.
 ///
 /// # Safety
-/// The width's instructions; fewer than `S::N` samples waiting.
+/// The width's instructions.
 #[inline(always)]
 pub(super) unsafe fn queue_slots<S: Simd, T: Voxel>(
-    dq: &mut Deferred,
+    dq: &mut Deferred<S>,
     sl: &Slots<S>,
     m: S::M,
     vol: &Vol<S>,
     light: &Light<S>,
     view: [S::F; 3],
 ) {
-    if dq.push::<S>(m, sl.p, sl.w, sl.al, sl.q) {
-        shade_deferred::<S, T>(dq, vol, light, view);
+    if let Some(b) = dq.push(m, sl.p, sl.w, sl.al, sl.q) {
+        shade_batch::<S, T>(dq, b, vol, light, view);
     }
 }
 
@@ -208,7 +208,7 @@ unsafe fn march<
     );
     let stop = S::splat(pk.stop);
     let light = Light::<S>::new(&pk.shading.unwrap_or_default(), f.inv_spacing);
-    let mut dq = Deferred::new();
+    let mut dq = Deferred::<S>::new();
     // Blocks, for skipping.
     let skips = Skips::<S>::of(pk);
     // Lane state.
@@ -370,8 +370,8 @@ unsafe fn march<
                     // The colour waits in the queue, the opacity is
                     // composited now (with `e` zero).
                     let w = we * (one - col[3]);
-                    if dq.push::<S>(valid, p, w, al, [qr, qg, qb]) {
-                        shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                    if let Some(b) = dq.push(valid, p, w, al, [qr, qg, qb]) {
+                        shade_batch::<S, T>(&mut dq, b, &vol, &light, view);
                     }
                     cnt_shaded = S::count(cnt_shaded, valid);
                 } else if defer_runs {
@@ -483,8 +483,8 @@ unsafe fn march<
             if SHADE {
                 cnt_shaded = S::count(cnt_shaded, vis);
                 let w = we * (one - col[3]);
-                if dq.push::<S>(show, p, w, al, [qr, qg, qb]) {
-                    shade_deferred::<S, T>(&mut dq, &vol, &light, view);
+                if let Some(b) = dq.push(show, p, w, al, [qr, qg, qb]) {
+                    shade_batch::<S, T>(&mut dq, b, &vol, &light, view);
                 }
             } else {
                 e = [S::keep(show, qr), S::keep(show, qg), S::keep(show, qb)];

@@ -340,30 +340,20 @@ impl<const LOADS: bool> Simd for W16<LOADS> {
         F16(_mm512_loadu_ps(p))
     }
     #[inline(always)]
-    unsafe fn load_at_i(p: *const i32) -> I16 {
-        I16(_mm512_loadu_si512(p as *const _))
-    }
-    #[inline(always)]
     unsafe fn store_at(p: *mut f32, v: F16) {
         _mm512_storeu_ps(p, v.0)
     }
     #[inline(always)]
-    unsafe fn store_at_i(p: *mut i32, v: I16) {
-        _mm512_storeu_si512(p as *mut _, v.0)
-    }
-    #[inline(always)]
-    unsafe fn compress_at(p: *mut f32, m: __mmask16, v: F16) {
-        // Compressed in a register and stored whole: a masked compressing
-        // store to memory is several times slower on Intel cores.
-        _mm512_storeu_ps(p, _mm512_maskz_compress_ps(m, v.0))
-    }
-    #[inline(always)]
-    unsafe fn compress_at_i(p: *mut i32, m: __mmask16, v: I16) {
-        _mm512_storeu_si512(p as *mut _, _mm512_maskz_compress_epi32(m, v.0))
-    }
-    #[inline(always)]
     unsafe fn permute(v: F16, idx: I16) -> F16 {
         F16(_mm512_permutexvar_ps(idx.0, v.0))
+    }
+    #[inline(always)]
+    unsafe fn permute_i(v: I16, idx: I16) -> I16 {
+        I16(_mm512_permutexvar_epi32(idx.0, v.0))
+    }
+    #[inline(always)]
+    unsafe fn set_lanes(m: __mmask16) -> I16 {
+        I16(_mm512_maskz_compress_epi32(m, Self::iota().0))
     }
     #[inline(always)]
     unsafe fn iota() -> I16 {

@@ -354,29 +354,20 @@ impl<const LOADS: bool> Simd for W8<LOADS> {
         F8(_mm256_loadu_ps(p))
     }
     #[inline(always)]
-    unsafe fn load_at_i(p: *const i32) -> I8 {
-        I8(_mm256_loadu_si256(p as *const __m256i))
-    }
-    #[inline(always)]
     unsafe fn store_at(p: *mut f32, v: F8) {
         _mm256_storeu_ps(p, v.0)
     }
     #[inline(always)]
-    unsafe fn store_at_i(p: *mut i32, v: I8) {
-        _mm256_storeu_si256(p as *mut __m256i, v.0)
-    }
-    #[inline(always)]
-    unsafe fn compress_at(p: *mut f32, m: __m256, v: F8) {
-        _mm256_storeu_ps(p, _mm256_permutevar8x32_ps(v.0, compress_order(m)))
-    }
-    #[inline(always)]
-    unsafe fn compress_at_i(p: *mut i32, m: __m256, v: I8) {
-        let i = compress_order(m);
-        _mm256_storeu_si256(p as *mut __m256i, _mm256_permutevar8x32_epi32(v.0, i))
-    }
-    #[inline(always)]
     unsafe fn permute(v: F8, idx: I8) -> F8 {
         F8(_mm256_permutevar8x32_ps(v.0, idx.0))
+    }
+    #[inline(always)]
+    unsafe fn permute_i(v: I8, idx: I8) -> I8 {
+        I8(_mm256_permutevar8x32_epi32(v.0, idx.0))
+    }
+    #[inline(always)]
+    unsafe fn set_lanes(m: __m256) -> I8 {
+        I8(compress_order(m))
     }
     #[inline(always)]
     unsafe fn iota() -> I8 {
