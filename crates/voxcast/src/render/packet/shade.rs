@@ -7,16 +7,16 @@
 //! once, while its colour — the gradient's six trilinear fetches and the
 //! lighting — can wait: the sample goes into a queue with its weight
 //! (transmittance × emission weight), and whenever `N` samples wait, one
-//! full vector (gathered in registers) shades them and adds each to its own lane's colour. In
-//! the lock-step loop the visible lanes of an iteration are about half
-//! of them (54 % on the teapot CT); the queue makes every shading lane
-//! count. The step-per-block marches composite a sample's colour at more
-//! than one step (S0's grouped reuse; a run's last sample, scaled once its
-//! stretch is known), and so does grouped `threshold`: there each lane's
-//! last evaluated sample waits in a slot ([`Slots`]) that sums its
-//! weights, and goes to the queue when the lane evaluates its next one.
-//! Their scalar walk (`adaptive-s0`) composites a run's end itself and
-//! shades at once.
+//! full vector (gathered in registers) shades them and adds each to its
+//! own lane's colour. In the lock-step loop the visible lanes of an
+//! iteration are about half of them (54 % on the teapot CT); the queue
+//! makes every shading lane count. The step-per-block marches composite
+//! a sample's colour at more than one step (S0's grouped reuse; a run's
+//! last sample, scaled once its stretch is known), and so does grouped
+//! `threshold`: there each lane's last evaluated sample waits in a slot
+//! ([`Slots`]) that sums its weights, and goes to the queue when the
+//! lane evaluates its next one. Their scalar walk (`adaptive-s0`)
+//! composites a run's end itself and shades at once.
 
 use super::simd::Simd;
 use super::LANES;
@@ -175,11 +175,12 @@ const CAP: usize = 2 * LANES;
 /// premultiplied colour (3) and its lane (as a float).
 const PARTS: usize = 9;
 
-/// The samples waiting for their shading, in vector registers (fewer
-/// than `N`, on the low lanes), and what each lane's shaded samples have
-/// added up to so far. The queue never goes through memory: a vector
-/// gathered from several pushes' stores would wait for all of them to
-/// reach the cache before it could be loaded.
+/// The samples waiting for their shading, as vectors (fewer than `N`, on
+/// the low lanes), and what each lane's shaded samples have added up to
+/// so far. Not an array that pushes store into and a batch loads back: a
+/// vector loaded from several pushes' stores waits for all of them to
+/// reach the cache (2.9 % of the shaded teapot's frame, 7–9 % of the
+/// step-per-block marches', docs/engine.md).
 pub(super) struct Deferred<S: Simd> {
     /// Samples waiting.
     n: usize,

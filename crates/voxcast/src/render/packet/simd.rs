@@ -34,8 +34,8 @@ pub(super) trait Simd: Copy {
     unsafe fn ceil(a: Self::F) -> Self::F;
     unsafe fn sqrt(a: Self::F) -> Self::F;
     /// `1/√a` for `a > 0`, to within a few ulps: the hardware estimate
-    /// refined by one Newton step (a square root and a division cost
-    /// about ten times as much); ∞ or NaN at 0.
+    /// refined by one Newton step, instead of a square root and a
+    /// division; ∞ or NaN at 0.
     unsafe fn rsqrt(a: Self::F) -> Self::F;
     unsafe fn abs(a: Self::F) -> Self::F;
     /// Truncated towards zero.
