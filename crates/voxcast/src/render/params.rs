@@ -402,20 +402,20 @@ impl RenderParams {
     }
 
     /// Whether this render may take its block size from the data
-    /// ([`SPARSE_BLOCK`] where the data is sparse): with skipping on, the
-    /// marchers that use the blocks only to skip empty space (`uniform`,
-    /// `jitter`, `stratified`, `mc`, not grouped), whose picture is the same
-    /// whatever the block size; and with skipping on or off (so that
-    /// skipping changes its cost, not its pixels) `adaptive+grouped`, whose
-    /// levels and groups follow the blocks: on sparse data finer blocks
-    /// give it fewer samples and less time at its defaults, and at a given
-    /// PSNR about as much time or less (docs/methods.md, "`adaptive` at equal
-    /// quality, and with finer blocks"). `adaptive` alone, which at a
-    /// given PSNR was slower with them on the teapot, S0's exact formulas
-    /// (`adaptive-s0`, `adaptive-max`), `uniform+grouped`, `threshold`,
-    /// `importance`, `lod` and the physically based methods take steps,
-    /// groups, a pdf, a tree or a majorant from the blocks, and keep
-    /// [`DEFAULT_BLOCK`] (as does the GPU back end, for every method).
+    /// ([`SPARSE_BLOCK`] where the data is sparse):
+    /// * with skipping on, the marchers that use the blocks only to skip
+    ///   (`uniform`, `jitter`, `stratified`, `mc`, not grouped): the same
+    ///   picture whatever the size;
+    /// * `adaptive+grouped`, with skipping on or off (so that skipping
+    ///   changes its cost, not its pixels): its levels follow the blocks,
+    ///   and finer ones measured faster at its defaults and about as fast
+    ///   or faster at equal PSNR
+    ///   (docs/methods.md, "`adaptive` at equal quality, and with finer
+    ///   blocks").
+    ///
+    /// Every other method takes steps, groups, a pdf, a tree or a majorant
+    /// from the blocks as measured at [`DEFAULT_BLOCK`], and keeps it (as
+    /// does the GPU back end, for every method).
     ///
     /// [`SPARSE_BLOCK`]: blocks::SPARSE_BLOCK
     /// [`DEFAULT_BLOCK`]: blocks::DEFAULT_BLOCK

@@ -270,21 +270,11 @@ impl<S: Simd> Deferred<S> {
         self.pushes[(self.head + self.np) % CAP] = bits;
         self.np += 1;
         let (n, c, full) = (self.n, bits.count_ones() as usize, S::N);
-        let new = [
-            p[0],
-            p[1],
-            p[2],
-            w,
-            al,
-            q[0],
-            q[1],
-            q[2],
-            S::to_f(S::iota()),
-        ];
+        let iota = S::iota();
+        let new = [p[0], p[1], p[2], w, al, q[0], q[1], q[2], S::to_f(iota)];
         // The lanes of `m` in order, after the `n` waiting: lane `n + i`
         // takes `m`'s `i`-th lane.
         let order = S::set_lanes(m);
-        let iota = S::iota();
         let idx = S::permute_i(order, iota - S::splat_i(n as i32));
         let end = (n + c).min(full);
         let put = S::from_bits(((1u64 << end) - 1) as u32 & !((1u32 << n) - 1));
@@ -367,10 +357,10 @@ impl<S: Simd> Deferred<S> {
     }
 }
 
-#[cfg(test)]
+#[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
-    use crate::render::packet::simd::{W16, W8};
+    use crate::render::packet::simd::at_each_width;
 
     type Waiting = std::collections::VecDeque<(f32, usize)>;
 
@@ -443,25 +433,8 @@ mod tests {
         }
     }
 
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn on_w8() {
-        queue_keeps_order_and_lanes::<W8<false>>();
-    }
-
-    #[target_feature(enable = "avx2,fma,avx512f")]
-    unsafe fn on_w16() {
-        queue_keeps_order_and_lanes::<W16<false>>();
-    }
-
     #[test]
     fn the_queue_hands_out_samples_in_order_on_their_lanes_at_each_width_the_cpu_has() {
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has the instructions (checked above).
-            unsafe { on_w8() };
-        }
-        if std::is_x86_feature_detected!("avx512f") {
-            // SAFETY: as above.
-            unsafe { on_w16() };
-        }
+        at_each_width!(queue_keeps_order_and_lanes);
     }
 }

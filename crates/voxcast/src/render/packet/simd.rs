@@ -132,6 +132,32 @@ pub(super) struct W16<const LOADS: bool>;
 mod w16;
 mod w8;
 
+/// Runs the generic test body `f::<S>()` at each width this CPU has (a
+/// test helper: each width in a function compiled for its instructions).
+#[cfg(all(test, target_arch = "x86_64"))]
+macro_rules! at_each_width {
+    ($f:ident) => {{
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn on_w8() {
+            $f::<$crate::render::packet::simd::W8<false>>();
+        }
+        #[target_feature(enable = "avx2,fma,avx512f")]
+        unsafe fn on_w16() {
+            $f::<$crate::render::packet::simd::W16<false>>();
+        }
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has the instructions (checked above).
+            unsafe { on_w8() };
+        }
+        if std::is_x86_feature_detected!("avx512f") {
+            // SAFETY: as above.
+            unsafe { on_w16() };
+        }
+    }};
+}
+#[cfg(all(test, target_arch = "x86_64"))]
+pub(super) use at_each_width;
+
 #[cfg(all(test, target_arch = "x86_64"))]
 mod tests {
     use super::*;
@@ -163,25 +189,8 @@ mod tests {
         }
     }
 
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn on_w8() {
-        expand_order_puts_runs_on_their_lanes::<W8<false>>();
-    }
-
-    #[target_feature(enable = "avx2,fma,avx512f")]
-    unsafe fn on_w16() {
-        expand_order_puts_runs_on_their_lanes::<W16<false>>();
-    }
-
     #[test]
     fn expand_order_at_each_width_the_cpu_has() {
-        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has the instructions (checked above).
-            unsafe { on_w8() };
-        }
-        if std::is_x86_feature_detected!("avx512f") {
-            // SAFETY: as above.
-            unsafe { on_w16() };
-        }
+        at_each_width!(expand_order_puts_runs_on_their_lanes);
     }
 }
