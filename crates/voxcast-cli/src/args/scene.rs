@@ -191,8 +191,10 @@ pub struct SceneArgs {
     /// to AVX2 fetching with scalar loads; `avx512` and `avx512-loads` the
     /// same at AVX-512. `auto` picks the loads on AMD and on Intel's
     /// Skylake to Ice Lake (whose gathers are slower), the gathers on other
-    /// Intel CPUs; `voxcast bench` prints the level. `scalar` always runs
-    /// the scalar loop (the same picture).
+    /// Intel CPUs; `voxcast bench` prints the level. On AArch64 `auto`
+    /// runs the packets in NEON registers (four lanes) and the x86 levels
+    /// run the scalar loop. `scalar` always runs the scalar loop (the same
+    /// picture).
     #[arg(long, value_enum, help_heading = "Ray casting")]
     pub simd: Option<SimdArg>,
     /// Gradient (Blinn–Phong) shading: on or off (default on).

@@ -98,6 +98,7 @@ impl Front {
     /// A ray's compositor that goes on from premultiplied colour and
     /// opacity `acc` (the SIMD packets' lanes, between their runs).
     #[inline(always)]
+    #[cfg_attr(not(packets), allow(dead_code))]
     pub fn resume(acc: Vec4, w: Weights, stop: f32) -> Front {
         Front {
             c: acc.truncate(),
@@ -109,6 +110,7 @@ impl Front {
 
     /// The premultiplied colour and opacity so far.
     #[inline(always)]
+    #[cfg_attr(not(packets), allow(dead_code))]
     pub fn acc(&self) -> Vec4 {
         self.c.extend(self.a)
     }

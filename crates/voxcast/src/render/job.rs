@@ -436,9 +436,9 @@ impl Job<'_> {
                             }
                         }
                         let mut rays = [(Vec3::ZERO, Vec3::ZERO); packet::LANES];
-                        #[cfg(target_arch = "x86_64")]
+                        #[cfg(packets)]
                         pk.camera_rays(&self.cam, &pixels[..n], &mut rays[..n]);
-                        #[cfg(not(target_arch = "x86_64"))]
+                        #[cfg(not(packets))]
                         for (r, &(x, y)) in rays[..n].iter_mut().zip(&pixels[..n]) {
                             *r = self.cam.ray(x, y);
                         }

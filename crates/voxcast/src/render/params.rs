@@ -277,8 +277,8 @@ pub enum Order {
 pub enum Simd {
     /// SIMD ray packets where the CPU has them and the render is one they
     /// cover (fixed step, trilinear, flat or Phong, front to back), compiled
-    /// for the best instruction set the CPU has (AVX-512, else AVX2 + FMA);
-    /// the scalar loop otherwise.
+    /// for the best instruction set the CPU has (AVX-512, else AVX2 + FMA;
+    /// NEON on AArch64); the scalar loop otherwise.
     #[default]
     Auto,
     /// The packets compiled for AVX2 + FMA even where the CPU has AVX-512

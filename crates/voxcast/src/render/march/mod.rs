@@ -17,6 +17,7 @@ mod threshold;
 
 #[cfg(test)]
 pub(super) use steps::{classified_level, round_log2};
+#[cfg_attr(not(packets), allow(unused_imports))]
 pub(super) use steps::{
     exp2i, BlockMax, Classified, Fixed, Level, Midpoint, Next, Pending, RunWalk, Steps, VRule,
 };

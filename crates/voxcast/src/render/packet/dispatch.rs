@@ -1,7 +1,8 @@
-//! Which packet build runs on this CPU ([`level`]): sixteen lanes in
-//! AVX-512 registers or two packets of eight in AVX2 ones, each fetching
-//! by the gather instructions or by scalar loads, whichever this CPU runs
-//! faster ([`loads_beat_gathers`]).
+//! Which packet build runs on this CPU ([`level`]): on x86-64 sixteen
+//! lanes in AVX-512 registers or two packets of eight in AVX2 ones, each
+//! fetching by the gather instructions or by scalar loads, whichever this
+//! CPU runs faster ([`loads_beat_gathers`]); on AArch64 four packets of
+//! four in NEON registers.
 
 /// The instruction set a packet is compiled for, picked at run time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -9,37 +10,54 @@
 pub enum Level {
     /// AVX2 + FMA: eight lanes in 256-bit registers (a packet's sixteen
     /// rays as two packets of eight), fetching by the AVX2 gathers.
+    #[cfg(target_arch = "x86_64")]
     Avx2,
     /// The same, fetching lane by lane with scalar loads: faster where the
     /// gathers are slow (AMD's cores, Intel's from Skylake to Ice Lake:
     /// `dispatch::loads_beat_gathers`).
+    #[cfg(target_arch = "x86_64")]
     #[serde(rename = "avx2-loads")]
     Avx2Loads,
     /// AVX-512 F: sixteen lanes in 512-bit registers, lane masks in mask
     /// registers, thirty-two registers.
+    #[cfg(target_arch = "x86_64")]
     Avx512,
     /// The same, fetching lane by lane with scalar loads: faster where the
     /// AVX-512 gathers are slow (AMD's Zen 5, Intel's Skylake-SP to Ice
     /// Lake: `dispatch::loads_beat_gathers`).
+    #[cfg(target_arch = "x86_64")]
     #[serde(rename = "avx512-loads")]
     Avx512Loads,
+    /// AArch64's NEON: four lanes in 128-bit registers (a packet's
+    /// sixteen rays as four packets of four), fetching lane by lane with
+    /// scalar loads (NEON has no gather).
+    #[cfg(target_arch = "aarch64")]
+    Neon,
 }
 
 impl Level {
     pub fn name(self) -> &'static str {
         match self {
+            #[cfg(target_arch = "x86_64")]
             Level::Avx2 => "avx2",
+            #[cfg(target_arch = "x86_64")]
             Level::Avx2Loads => "avx2-loads",
+            #[cfg(target_arch = "x86_64")]
             Level::Avx512 => "avx512",
+            #[cfg(target_arch = "x86_64")]
             Level::Avx512Loads => "avx512-loads",
+            #[cfg(target_arch = "aarch64")]
+            Level::Neon => "neon",
         }
     }
 }
 
 /// The packets' level on this CPU under `simd`, or `None` where the scalar
-/// loop runs (no AVX2 + FMA, not x86-64, or `Simd::Scalar`).
+/// loop runs (x86-64 without AVX2 + FMA, a target other than x86-64 and
+/// AArch64, or `Simd::Scalar`). On AArch64 `Simd::Auto` picks NEON, and
+/// the x86 levels are the scalar loop, as AVX-512 is on a CPU without it.
 pub fn level(simd: crate::render::Simd) -> Option<Level> {
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(all(packets, target_arch = "x86_64"))]
     {
         use crate::render::Simd;
         let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
@@ -57,7 +75,14 @@ pub fn level(simd: crate::render::Simd) -> Option<Level> {
             Simd::Avx512Loads => Some(Level::Avx512Loads),
         }
     }
-    #[cfg(not(target_arch = "x86_64"))]
+    #[cfg(all(packets, target_arch = "aarch64"))]
+    {
+        match simd {
+            crate::render::Simd::Auto => Some(Level::Neon),
+            _ => None,
+        }
+    }
+    #[cfg(not(packets))]
     {
         let _ = simd;
         None
@@ -67,7 +92,7 @@ pub fn level(simd: crate::render::Simd) -> Option<Level> {
 /// Whether the packets fetch by scalar loads rather than the gather
 /// instructions on this CPU ([`loads_beat_gathers`] of its CPUID vendor,
 /// family and model).
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(packets, target_arch = "x86_64"))]
 fn gathers_by_loads() -> bool {
     // CPUID once per process: `level` runs for every render (in a virtual
     // machine each CPUID is a trap to the hypervisor).
@@ -76,7 +101,7 @@ fn gathers_by_loads() -> bool {
 }
 
 /// [`gathers_by_loads`] from CPUID.
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(packets, target_arch = "x86_64"))]
 fn cpuid_loads() -> bool {
     use std::arch::x86_64::__cpuid;
     // SAFETY: CPUID leaves 0 and 1 exist on every x86-64 CPU.
@@ -119,6 +144,7 @@ fn cpuid_loads() -> bool {
 ///   (docs/engine.md, "Gathers or loads on Intel's Ice Lake").
 /// * Every other Intel core keeps the gathers: on an Emerald Rapids
 ///   (family 6, model 0xCF) they were 5–13 % faster than the loads.
+#[cfg_attr(not(all(packets, target_arch = "x86_64")), allow(dead_code))]
 pub fn loads_beat_gathers(vendor: &[u8; 12], family: u32, model: u32) -> bool {
     match vendor {
         b"AuthenticAMD" | b"HygonGenuine" => true,
@@ -153,6 +179,18 @@ pub fn loads_beat_gathers(vendor: &[u8; 12], family: u32, model: u32) -> bool {
 #[cfg(test)]
 mod tests {
     use super::loads_beat_gathers;
+
+    /// AArch64 runs the NEON packets unless the scalar loop is asked for
+    /// (else every packet-against-scalar test there would check nothing).
+    #[cfg(all(packets, target_arch = "aarch64"))]
+    #[test]
+    fn aarch64_runs_the_neon_packets() {
+        use super::{level, Level};
+        use crate::render::Simd;
+        assert_eq!(level(Simd::Auto), Some(Level::Neon));
+        assert_eq!(level(Simd::Scalar), None);
+        assert_eq!(level(Simd::Avx512), None);
+    }
 
     #[test]
     fn loads_where_the_gathers_are_slow() {

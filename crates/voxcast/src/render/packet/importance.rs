@@ -4,7 +4,9 @@
 //! [`crate::render::stochastic::systematic`] does ray by ray, and hand
 //! the vector loop each stretch's spacing, end and level table.
 
+#[cfg(packets)]
 use super::simd::Simd;
+#[cfg(packets)]
 use super::vwalk::{LaneWalk, Rays, VBlocks};
 use super::{Lane, Packets, Setup, State, LANES};
 use crate::render::march::BlockWalker;
@@ -35,6 +37,7 @@ pub(super) struct ImpLane {
 /// `importance`'s lanes in the vector loop: where each samples next,
 /// its spacing, the end of its stretch and the row offset of its level's
 /// table (in floats).
+#[cfg(packets)]
 pub(super) struct ImpState<S: Simd> {
     pub t: S::F,
     pub s: S::F,
@@ -42,6 +45,7 @@ pub(super) struct ImpState<S: Simd> {
     pub off: S::I,
 }
 
+#[cfg(packets)]
 impl<S: Simd> ImpState<S> {
     /// No lane walking (a loop without `importance`).
     #[inline(always)]
@@ -57,12 +61,14 @@ impl<S: Simd> ImpState<S> {
 
 /// The `importance` lanes' walks in vector registers: their blocks, and
 /// the optical depth of the blocks' mean extinction so far.
+#[cfg(packets)]
 pub(super) struct VImp<'a, S: Simd> {
     ip: &'a Imp<'a>,
     w: VBlocks<S>,
     tau: S::F,
 }
 
+#[cfg(packets)]
 impl<'a, S: Simd> VImp<'a, S> {
     /// The walks of `st.imp`'s lanes on the rays `o + d·t` (`inv_d =
     /// 1/d`; `rays.t0` unused), and the lanes' state before their first

@@ -13,7 +13,11 @@
 //! which zero of two it keeps: glam's `Vec3::min` is the instruction's
 //! rule, `f32::min` another ([`fmin`]).
 
-use super::simd::{Simd, W16, W8};
+use super::simd::Simd;
+#[cfg(target_arch = "aarch64")]
+use super::simd::W4;
+#[cfg(target_arch = "x86_64")]
+use super::simd::{W16, W8};
 use super::{Lane, WalkStart, LANES};
 use crate::camera::{Camera, Projection};
 use glam::Vec3;
@@ -357,6 +361,7 @@ unsafe fn set_up_runs<S: Simd>(
 ///
 /// # Safety
 /// AVX2 and FMA present.
+#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn set_up_runs_avx2(
     g: &Geometry,
@@ -373,6 +378,7 @@ pub(super) unsafe fn set_up_runs_avx2(
 ///
 /// # Safety
 /// AVX2, FMA and AVX-512 F present.
+#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,avx512f")]
 pub(super) unsafe fn set_up_runs_avx512(
     g: &Geometry,
@@ -389,6 +395,7 @@ pub(super) unsafe fn set_up_runs_avx512(
 ///
 /// # Safety
 /// AVX2 and FMA present.
+#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn set_up_avx2(
     g: &Geometry,
@@ -404,6 +411,7 @@ pub(super) unsafe fn set_up_avx2(
 ///
 /// # Safety
 /// AVX2, FMA and AVX-512 F present.
+#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,avx512f")]
 pub(super) unsafe fn set_up_avx512(
     g: &Geometry,
@@ -413,6 +421,37 @@ pub(super) unsafe fn set_up_avx512(
     lanes: &mut [Option<Lane>; LANES],
 ) -> u64 {
     set_up::<W16<false>>(g, rays, jit, limit, lanes)
+}
+
+/// [`set_up_runs`] in NEON registers (AArch64), four lanes at a time.
+///
+/// # Safety
+/// None beyond the packets' (NEON is part of AArch64).
+#[cfg(target_arch = "aarch64")]
+pub(super) unsafe fn set_up_runs_neon(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    limit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+    starts: &mut [Option<WalkStart>; LANES],
+) -> u64 {
+    set_up_runs::<W4>(g, rays, jit, limit, lanes, starts)
+}
+
+/// [`set_up`] in NEON registers (AArch64), four lanes at a time.
+///
+/// # Safety
+/// None beyond the packets' (NEON is part of AArch64).
+#[cfg(target_arch = "aarch64")]
+pub(super) unsafe fn set_up_neon(
+    g: &Geometry,
+    rays: &[(Vec3, Vec3)],
+    jit: &[f32; LANES],
+    limit: &[f32; LANES],
+    lanes: &mut [Option<Lane>; LANES],
+) -> u64 {
+    set_up::<W4>(g, rays, jit, limit, lanes)
 }
 
 /// [`Camera::ray`] for each pixel of `pixels` into `rays` (as many),
@@ -472,6 +511,7 @@ unsafe fn camera_rays<S: Simd>(c: &Camera, pixels: &[(u32, u32)], rays: &mut [(V
 ///
 /// # Safety
 /// AVX2 and FMA present.
+#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 pub(super) unsafe fn camera_rays_avx2(
     c: &Camera,
@@ -485,6 +525,7 @@ pub(super) unsafe fn camera_rays_avx2(
 ///
 /// # Safety
 /// AVX2, FMA and AVX-512 F present.
+#[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma,avx512f")]
 pub(super) unsafe fn camera_rays_avx512(
     c: &Camera,
@@ -492,6 +533,19 @@ pub(super) unsafe fn camera_rays_avx512(
     rays: &mut [(Vec3, Vec3)],
 ) {
     camera_rays::<W16<false>>(c, pixels, rays)
+}
+
+/// [`camera_rays`] in NEON registers (AArch64), four rays at a time.
+///
+/// # Safety
+/// None beyond the packets' (NEON is part of AArch64).
+#[cfg(target_arch = "aarch64")]
+pub(super) unsafe fn camera_rays_neon(
+    c: &Camera,
+    pixels: &[(u32, u32)],
+    rays: &mut [(Vec3, Vec3)],
+) {
+    camera_rays::<W4>(c, pixels, rays)
 }
 
 #[cfg(test)]
@@ -543,15 +597,64 @@ mod tests {
         out
     }
 
+    /// A level the test's packets name (the set-ups do not read it).
+    #[cfg(target_arch = "x86_64")]
+    const ANY_LEVEL: super::super::Level = super::super::Level::Avx2;
+    #[cfg(target_arch = "aarch64")]
+    const ANY_LEVEL: super::super::Level = super::super::Level::Neon;
+
+    type SetUp = unsafe fn(
+        &Geometry,
+        &[(Vec3, Vec3)],
+        &[f32; LANES],
+        &[f32; LANES],
+        &mut [Option<Lane>; LANES],
+    ) -> u64;
+    type SetUpRuns = unsafe fn(
+        &Geometry,
+        &[(Vec3, Vec3)],
+        &[f32; LANES],
+        &[f32; LANES],
+        &mut [Option<Lane>; LANES],
+        &mut [Option<WalkStart>; LANES],
+    ) -> u64;
+    type CameraRays = unsafe fn(&Camera, &[(u32, u32)], &mut [(Vec3, Vec3)]);
+
+    /// Each width this CPU runs: its set-ups and its camera rays.
+    #[cfg(target_arch = "x86_64")]
+    fn widths() -> Vec<(SetUp, SetUpRuns, CameraRays)> {
+        let mut v = Vec::new();
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            v.push((
+                set_up_avx2 as SetUp,
+                set_up_runs_avx2 as SetUpRuns,
+                camera_rays_avx2 as CameraRays,
+            ));
+        }
+        if std::is_x86_feature_detected!("avx512f") {
+            v.push((set_up_avx512, set_up_runs_avx512, camera_rays_avx512));
+        }
+        v
+    }
+
+    /// Each width this CPU runs: NEON's.
+    #[cfg(target_arch = "aarch64")]
+    fn widths() -> Vec<(SetUp, SetUpRuns, CameraRays)> {
+        vec![(
+            set_up_neon as SetUp,
+            set_up_runs_neon as SetUpRuns,
+            camera_rays_neon as CameraRays,
+        )]
+    }
+
     #[test]
     fn vector_set_up_gives_the_scalar_lanes_bit_for_bit() {
         // (And the step-per-block marches' lanes with their walks'
         // starts: `Packets::run_lane` and `RunWalk::new`'s.)
-        let avx2 = std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma");
-        if !avx2 {
+        let widths = widths();
+        if widths.is_empty() {
             return;
         }
-        let avx512 = std::is_x86_feature_detected!("avx512f");
         let dims = [9usize, 7, 5];
         let data = vec![0u8; dims.iter().product()];
         let grid = Grid::new(&data, dims, 0.0, 255.0);
@@ -604,7 +707,7 @@ mod tests {
                     empty: None,
                     shading: None,
                     z_pairs: &z,
-                    level: super::super::Level::Avx2,
+                    level: ANY_LEVEL,
                     imp: None,
                     runs: None,
                     thr: None,
@@ -641,11 +744,7 @@ mod tests {
                         }
                     }
                     met += want.iter().flatten().count();
-                    let mut levels = vec![set_up_avx2 as unsafe fn(&_, &_, &_, &_, &mut _) -> u64];
-                    if avx512 {
-                        levels.push(set_up_avx512);
-                    }
-                    for set_up in levels {
+                    for &(set_up, _, _) in &widths {
                         let mut got = [None; LANES];
                         // SAFETY: the CPU has the instructions (checked above).
                         let hits = unsafe { set_up(&g, r, &jit, &limit, &mut got) };
@@ -667,12 +766,7 @@ mod tests {
                             .map(|(l, w)| (l, WalkStart::of(&w)));
                     }
                     walked += want.iter().flatten().count();
-                    let mut levels =
-                        vec![set_up_runs_avx2 as unsafe fn(&_, &_, &_, &_, &mut _, &mut _) -> u64];
-                    if avx512 {
-                        levels.push(set_up_runs_avx512);
-                    }
-                    for set_up_runs in levels {
+                    for &(_, set_up_runs, _) in &widths {
                         let (mut lanes, mut starts) = ([None; LANES], [None; LANES]);
                         // SAFETY: the CPU has the instructions (checked above).
                         let hits =
@@ -704,13 +798,11 @@ mod tests {
     /// of an image whose rows split into packets of every length.
     #[test]
     fn vector_camera_rays_are_the_cameras_bit_for_bit() {
-        use crate::camera::{Camera, CameraParams, Projection};
-        if !std::arch::is_x86_feature_detected!("avx2")
-            || !std::arch::is_x86_feature_detected!("fma")
-        {
+        use crate::camera::CameraParams;
+        let widths = widths();
+        if widths.is_empty() {
             return;
         }
-        let avx512 = std::arch::is_x86_feature_detected!("avx512f");
         let (lo, hi) = (Vec3::new(-1.3, 0.2, -0.7), Vec3::new(2.9, 1.7, 3.1));
         let (w, h) = (37, 23);
         let mut checked = 0;
@@ -731,11 +823,7 @@ mod tests {
                 for len in 1..=LANES {
                     for chunk in pixels.chunks(len) {
                         let want: Vec<_> = chunk.iter().map(|&(x, y)| cam.ray(x, y)).collect();
-                        let mut levels = vec![camera_rays_avx2 as unsafe fn(&_, &_, &mut _)];
-                        if avx512 {
-                            levels.push(camera_rays_avx512);
-                        }
-                        for rays_of in levels {
+                        for &(_, _, rays_of) in &widths {
                             let mut got = vec![(Vec3::ZERO, Vec3::ZERO); chunk.len()];
                             // SAFETY: the CPU has the instructions (checked above).
                             unsafe { rays_of(&cam, chunk, &mut got) };

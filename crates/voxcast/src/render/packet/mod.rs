@@ -29,7 +29,7 @@
 //! again only once past the cube of visible blocks around it.
 //!
 //! The vector code is written once over the [`simd::Simd`] operations and
-//! compiled at both widths. Its arithmetic is the scalar path's, operation
+//! compiled at each width. Its arithmetic is the scalar path's, operation
 //! for operation (no fused multiply-adds where the scalar path has none),
 //! so a packet gives the scalar pixels to within the rounding of a few
 //! skipped-block boundaries. The last sample of a ray (its stretch ends at
@@ -38,8 +38,15 @@
 //!
 //! Dispatch is at run time ([`level`]): x86-64 with AVX-512 F runs the
 //! sixteen lanes in 512-bit registers with mask registers; with AVX2 and
-//! FMA, two packets of eight; any other machine, or `RenderParams::simd =
-//! scalar`, takes the scalar loop, which stays the reference.
+//! FMA, two packets of eight; AArch64 runs four packets of four in NEON
+//! registers; any other machine, or `RenderParams::simd = scalar`, takes
+//! the scalar loop, which stays the reference. The packets are compiled
+//! where `cfg(packets)` is set (`build.rs`: x86-64 and AArch64); elsewhere
+//! this module keeps only what the scalar path shares, and the rest of it
+//! is unused.
+
+// Built without the packets, the lanes' set-up and state are unused.
+#![cfg_attr(not(packets), allow(dead_code, unused_imports))]
 
 use super::composite::Weights;
 use super::march::intersect_box;
@@ -53,7 +60,7 @@ use super::surface::{self, SurfaceCtx};
 /// inlined into it, the sixteen lanes as packets of `$w`'s width (two of
 /// eight at AVX2), for the type choices `$p` (bounded by `$pb`) and the
 /// const choices `$c` it passes on.
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 macro_rules! entry {
     ($(#[$doc:meta])* $vis:vis $name:ident, $features:literal, $w:ty, $march:ident<$($c:ident),*>) => {
         entry!($(#[$doc])* $vis $name, $features, $w, $march<[] $($c),*>);
@@ -82,6 +89,7 @@ mod distance;
 mod importance;
 mod mc;
 mod runs;
+#[cfg(packets)]
 mod shade;
 mod stratified;
 mod threshold;
@@ -94,6 +102,7 @@ pub(in crate::render) use distance::skip_distances;
 use glam::{Vec3, Vec4};
 pub(in crate::render) use importance::Imp;
 use importance::ImpLane;
+use runs::VParams;
 use runs::WalkStart;
 pub(in crate::render) use runs::{vector_params, Adapt, Runs};
 pub(in crate::render) use stratified::Strat;
@@ -185,7 +194,7 @@ struct State<'s> {
 
 impl State<'_> {
     /// The state of lanes `r` (for a narrower packet).
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(packets)]
     fn part(&mut self, r: std::ops::Range<usize>) -> State<'_> {
         State {
             imp: &mut self.imp[r.clone()],
@@ -289,7 +298,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     /// The camera's rays through `pixels` (at most [`LANES`]) into
     /// `rays`: [`crate::camera::Camera::ray`]'s, to the bit, computed in
     /// vector registers ([`lanes::camera_rays_avx2`]).
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(packets)]
     pub fn camera_rays(
         &self,
         cam: &crate::camera::Camera,
@@ -299,14 +308,18 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // SAFETY: `level` checked the CPU before any packet was made.
         unsafe {
             match self.level {
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2 | Level::Avx2Loads => lanes::camera_rays_avx2(cam, pixels, rays),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512 | Level::Avx512Loads => lanes::camera_rays_avx512(cam, pixels, rays),
+                #[cfg(target_arch = "aarch64")]
+                Level::Neon => lanes::camera_rays_neon(cam, pixels, rays),
             }
         }
     }
 
     /// What [`lanes`]' set-up reads of the render.
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(packets)]
     fn geometry(&self) -> lanes::Geometry {
         let f = self.f;
         lanes::Geometry {
@@ -418,16 +431,16 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // A fixed step: the lanes set up in vector registers ([`lanes`]);
         // a step-per-block march whose walks run in vector registers: the
         // lanes and where their walks start (`starts`), likewise.
-        #[cfg_attr(not(target_arch = "x86_64"), allow(unused_mut))]
+        #[cfg_attr(not(packets), allow(unused_mut))]
         let mut starts: [Option<WalkStart>; LANES] = [None; LANES];
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(packets)]
         let vector_runs = R::ON && self.runs.is_some_and(|r| r.vector().is_some());
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(packets)]
         let vector_set_up = vector_runs
             || (!R::ON && self.thr.is_none() && self.strat.is_none() && self.imp.is_none());
-        #[cfg(not(target_arch = "x86_64"))]
+        #[cfg(not(packets))]
         let vector_set_up = false;
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(packets)]
         if vector_set_up {
             let mut jit = [0.0f32; LANES];
             if let Some(seed) = self.jitter {
@@ -440,17 +453,27 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
             // SAFETY: `level` checked the CPU before any packet was made.
             stats.rays_hit += unsafe {
                 match (self.level, vector_runs) {
+                    #[cfg(target_arch = "x86_64")]
                     (Level::Avx2 | Level::Avx2Loads, false) => {
                         lanes::set_up_avx2(&g, rays, &jit, &limit, &mut lanes)
                     }
+                    #[cfg(target_arch = "x86_64")]
                     (Level::Avx512 | Level::Avx512Loads, false) => {
                         lanes::set_up_avx512(&g, rays, &jit, &limit, &mut lanes)
                     }
+                    #[cfg(target_arch = "x86_64")]
                     (Level::Avx2 | Level::Avx2Loads, true) => {
                         lanes::set_up_runs_avx2(&g, rays, &jit, &limit, &mut lanes, &mut starts)
                     }
+                    #[cfg(target_arch = "x86_64")]
                     (Level::Avx512 | Level::Avx512Loads, true) => {
                         lanes::set_up_runs_avx512(&g, rays, &jit, &limit, &mut lanes, &mut starts)
+                    }
+                    #[cfg(target_arch = "aarch64")]
+                    (Level::Neon, false) => lanes::set_up_neon(&g, rays, &jit, &limit, &mut lanes),
+                    #[cfg(target_arch = "aarch64")]
+                    (Level::Neon, true) => {
+                        lanes::set_up_runs_neon(&g, rays, &jit, &limit, &mut lanes, &mut starts)
                     }
                 }
             };
@@ -517,11 +540,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
         // grid and `shades` for the shading.
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(packets)]
         unsafe {
             self.dispatch(&lanes, &mut st)
         };
-        #[cfg(not(target_arch = "x86_64"))]
+        #[cfg(not(packets))]
         let _ = &mut st;
         let mut n = Counters::default();
         for i in 0..rays.len() {
@@ -581,11 +604,11 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // checked [`fits`] for the grid and [`shades`] for the shading;
         // `empty`, when given, holds a flag per block of the frame's
         // `block_counts`.
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(packets)]
         unsafe {
             self.dispatch(lanes, &mut st)
         }
-        #[cfg(not(target_arch = "x86_64"))]
+        #[cfg(not(packets))]
         let _ = (lanes, &mut st);
     }
 
@@ -596,7 +619,7 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     /// # Safety
     /// `self.level` from [`level`] on this CPU; the grid [`fits`], the
     /// shading [`shades`]; `empty`, when given, a flag per block.
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(packets)]
     unsafe fn dispatch(&self, lanes: &[Option<Lane>; LANES], st: &mut State<'_>) {
         // Grouped reuse: in the step-per-block runs, or in `threshold`'s
         // own loop.
@@ -707,27 +730,45 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
                 };
             }
             return match self.level {
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2 => thr!(thr_avx2),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2Loads => thr!(thr_avx2_loads),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512 => thr!(thr_avx512),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512Loads => thr!(thr_avx512_loads),
+                #[cfg(target_arch = "aarch64")]
+                Level::Neon => thr!(thr_neon),
             };
         }
         if !R::ON && self.strat.is_some() {
             // `stratified` and `mc`: their own loop, which reads skipping,
             // shading and which of the two as flags.
             return match self.level {
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2 => stratified::strat_avx2::<T, R>(self, lanes, st),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2Loads => stratified::strat_avx2_loads::<T, R>(self, lanes, st),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512 => stratified::strat_avx512::<T, R>(self, lanes, st),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512Loads => stratified::strat_avx512_loads::<T, R>(self, lanes, st),
+                #[cfg(target_arch = "aarch64")]
+                Level::Neon => stratified::strat_neon::<T, R>(self, lanes, st),
             };
         }
         match self.level {
+            #[cfg(target_arch = "x86_64")]
             Level::Avx2 => go!(march_avx2),
+            #[cfg(target_arch = "x86_64")]
             Level::Avx2Loads => go!(march_avx2_loads),
+            #[cfg(target_arch = "x86_64")]
             Level::Avx512 => go!(march_avx512),
+            #[cfg(target_arch = "x86_64")]
             Level::Avx512Loads => go!(march_avx512_loads),
+            #[cfg(target_arch = "aarch64")]
+            Level::Neon => go!(march_neon),
         }
     }
 
@@ -737,16 +778,22 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
         // SAFETY: `level` checked the CPU before any packet was made (the
         // only caller, `Job::packets`, takes it from there), `fits` for the
         // grid.
-        #[cfg(target_arch = "x86_64")]
+        #[cfg(packets)]
         unsafe {
             match self.level {
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2 => shadow::taus_avx2(self, marches, tau),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx2Loads => shadow::taus_avx2_loads(self, marches, tau),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512 => shadow::taus_avx512(self, marches, tau),
+                #[cfg(target_arch = "x86_64")]
                 Level::Avx512Loads => shadow::taus_avx512_loads(self, marches, tau),
+                #[cfg(target_arch = "aarch64")]
+                Level::Neon => shadow::taus_neon(self, marches, tau),
             }
         }
-        #[cfg(not(target_arch = "x86_64"))]
+        #[cfg(not(packets))]
         for (m, t) in marches.iter().zip(tau) {
             if let Some(m) = m {
                 *t = surface::march_tau(self.f, m);
@@ -755,19 +802,19 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     }
 }
 
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod fetch;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod lanes;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod shadow;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod simd;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod tail;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod vector;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod vwalk;
-#[cfg(target_arch = "x86_64")]
+#[cfg(packets)]
 mod walk;

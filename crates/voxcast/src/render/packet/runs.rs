@@ -9,7 +9,6 @@
 //! The last sample of a run waits, as in [`Steps::march`], until the walk
 //! knows where its stretch ends; the walk composites it.
 
-use super::vwalk::VParams;
 use super::{Lane, Packets, Setup};
 use crate::render::composite::Front;
 use crate::render::march::{Level, Next, RunWalk, Steps, VRule};
@@ -17,6 +16,28 @@ use crate::render::ray::{Counters, Frame, Segment};
 use crate::render::stats::RenderStats;
 use crate::volume::Voxel;
 use glam::Vec3;
+
+/// What the vector walk reads of a step-per-block march.
+#[derive(Clone, Copy)]
+pub(in crate::render) struct VParams<'a> {
+    pub rule: VRule<'a>,
+    /// The levels `lo..=hi` and their steps (world units).
+    pub lo: i32,
+    pub hi: i32,
+    pub steps: &'a [f32],
+    pub k_ref: f32,
+    /// Per block, the rule's `k` (0 for [`VRule::Fixed`]), or −1 where
+    /// the block is empty under the transfer function: one gather per
+    /// block.
+    pub k: &'a [f32],
+    /// Skipping empty blocks.
+    pub skip_empty: bool,
+    /// Runs keep S0's groups (grouped reuse): blocks merge only where
+    /// they share their group cap ([`Sampler::GROUPS`]).
+    ///
+    /// [`Sampler::GROUPS`]: crate::render::ray::Sampler::GROUPS
+    pub groups: bool,
+}
 
 /// Where the packets' lanes get their runs from: a step-per-block march
 /// ([`Adapt`]), or none (`()`: a fixed step, or `importance`).
@@ -185,7 +206,7 @@ pub(super) struct WalkStart {
 
 impl WalkStart {
     /// The start of `w`'s walk.
-    #[cfg(target_arch = "x86_64")]
+    #[cfg(packets)]
     pub(super) fn of(w: &RunWalk) -> WalkStart {
         let (block, t_max, t, t_out) = w.walker.state();
         WalkStart {

@@ -357,7 +357,7 @@ impl<S: Simd> Deferred<S> {
     }
 }
 
-#[cfg(all(test, target_arch = "x86_64"))]
+#[cfg(test)]
 mod tests {
     use super::*;
     use crate::render::packet::simd::at_each_width;

@@ -8,7 +8,11 @@
 //! [`march_tau`]: crate::render::surface::march_tau
 
 use super::fetch::Vol;
-use super::simd::{Simd, W16, W8};
+use super::simd::Simd;
+#[cfg(target_arch = "aarch64")]
+use super::simd::W4;
+#[cfg(target_arch = "x86_64")]
+use super::simd::{W16, W8};
 use super::{Packets, Runs, LANES};
 use crate::render::surface::ShadowMarch;
 use crate::transfer::LUT_SIZE;
@@ -88,27 +92,38 @@ macro_rules! shadow_entry {
     };
 }
 
+#[cfg(target_arch = "x86_64")]
 shadow_entry!(
     /// [`taus`] in AVX2 registers, eight lanes at a time.
     taus_avx2,
     "avx2,fma",
     W8<false>
 );
+#[cfg(target_arch = "x86_64")]
 shadow_entry!(
     /// [`taus_avx2`] fetching by scalar loads.
     taus_avx2_loads,
     "avx2,fma",
     W8<true>
 );
+#[cfg(target_arch = "x86_64")]
 shadow_entry!(
     /// [`taus`] in AVX-512 registers, sixteen lanes at once.
     taus_avx512,
     "avx2,fma,avx512f",
     W16<false>
 );
+#[cfg(target_arch = "x86_64")]
 shadow_entry!(
     /// [`taus_avx512`] fetching by scalar loads.
     taus_avx512_loads,
     "avx2,fma,avx512f",
     W16<true>
+);
+#[cfg(target_arch = "aarch64")]
+shadow_entry!(
+    /// [`taus`] in NEON registers (AArch64), four lanes at a time.
+    taus_neon,
+    "neon",
+    W4
 );

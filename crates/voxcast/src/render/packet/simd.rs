@@ -1,12 +1,14 @@
-//! The vector operations the packets' loop is written in, at two widths:
-//! eight lanes in AVX2 registers ([`W8`], lane masks as vectors) and
-//! sixteen in AVX-512 registers ([`W16`], lane masks in mask registers).
-//! The loop (`vector.rs`) is generic over [`Simd`], so both widths run the
-//! same code, operation for operation.
+//! The vector operations the packets' loop is written in, at three
+//! widths: on x86-64 eight lanes in AVX2 registers (`W8`, lane masks as
+//! vectors) and sixteen in AVX-512 registers (`W16`, lane masks in mask
+//! registers); on AArch64 four in NEON registers (`W4`). The loop
+//! (`vector.rs`) is generic over [`Simd`], so every width runs the same
+//! code, operation for operation.
 //!
 //! Every function is `unsafe` and `#[inline(always)]`: it is only ever
 //! inlined into a function compiled for its instructions (`march_avx2`,
-//! `march_avx512`), and a value of these types exists only there.
+//! `march_avx512`, `march_neon`), and a value of these types exists only
+//! there.
 
 use std::ops::{Add, Div, Index, IndexMut, Mul, Sub};
 
@@ -118,6 +120,7 @@ pub(super) trait Simd: Copy {
 /// which AMD's cores and Intel's from Skylake to Ice Lake run slower than
 /// the loads (see [`super::dispatch::loads_beat_gathers`]); the same values either
 /// way.
+#[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(super) struct W8<const LOADS: bool>;
 
@@ -126,10 +129,21 @@ pub(super) struct W8<const LOADS: bool>;
 /// scalar load per lane (sixteen 128-bit row loads and a transpose for the
 /// rows), which AMD's Zen 5 and Intel's Skylake-SP to Ice Lake run faster
 /// than their AVX-512 gathers (see [`super::dispatch::loads_beat_gathers`]); the same values either way.
+#[cfg(target_arch = "x86_64")]
 #[derive(Clone, Copy)]
 pub(super) struct W16<const LOADS: bool>;
 
+/// Four lanes in AArch64's NEON registers (every AArch64 CPU has them),
+/// fetching by one scalar load per lane: NEON has no gather.
+#[cfg(target_arch = "aarch64")]
+#[derive(Clone, Copy)]
+pub(super) struct W4;
+
+#[cfg(target_arch = "x86_64")]
 mod w16;
+#[cfg(target_arch = "aarch64")]
+mod w4;
+#[cfg(target_arch = "x86_64")]
 mod w8;
 
 /// Runs the generic test body `f::<S>()` at each width this CPU has (a
@@ -155,10 +169,18 @@ macro_rules! at_each_width {
         }
     }};
 }
-#[cfg(all(test, target_arch = "x86_64"))]
+/// Runs the generic test body `f::<S>()` at NEON's width.
+#[cfg(all(test, target_arch = "aarch64"))]
+macro_rules! at_each_width {
+    ($f:ident) => {{
+        // SAFETY: every AArch64 CPU has NEON.
+        unsafe { $f::<$crate::render::packet::simd::W4>() };
+    }};
+}
+#[cfg(test)]
 pub(super) use at_each_width;
 
-#[cfg(all(test, target_arch = "x86_64"))]
+#[cfg(test)]
 mod tests {
     use super::*;
 

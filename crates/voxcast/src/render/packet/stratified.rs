@@ -11,7 +11,9 @@
 //! where the positions come from, so both share one copy of the sampling,
 //! shading and compositing per stored type and level.
 
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(packets, target_arch = "aarch64"))]
+pub(super) use vector::strat_neon;
+#[cfg(all(packets, target_arch = "x86_64"))]
 pub(super) use vector::{strat_avx2, strat_avx2_loads, strat_avx512, strat_avx512_loads};
 
 use super::super::stochastic::stratified_key;
@@ -66,18 +68,23 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     }
 }
 
-/// The vector loop (x86-64 only, as the packets).
-#[cfg(target_arch = "x86_64")]
+/// The vector loop (where the packets are compiled: x86-64, AArch64).
+#[cfg(packets)]
 mod vector {
     use super::super::super::stochastic::interval_random;
     use super::super::fetch::Skips;
     use super::super::mc::Draws;
-    use super::super::simd::{Simd, W16, W8};
+    use super::super::simd::Simd;
+    #[cfg(target_arch = "aarch64")]
+    use super::super::simd::W4;
+    #[cfg(target_arch = "x86_64")]
+    use super::super::simd::{W16, W8};
     use super::super::tail::Taker;
     use super::super::vwalk::Rays;
     use super::super::{Lane, Packets, Runs, State, LANES};
     use crate::volume::Voxel;
 
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// The `stratified` lanes' loop at AVX2: two packets of eight,
         /// fetching by the gather instructions.
@@ -90,6 +97,7 @@ mod vector {
         W8<false>,
         march<>
     );
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// [`strat_avx2`] fetching by scalar loads.
         ///
@@ -100,6 +108,7 @@ mod vector {
         W8<true>,
         march<>
     );
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// [`strat_avx2`] in sixteen lanes of AVX-512 registers.
         ///
@@ -110,6 +119,7 @@ mod vector {
         W16<false>,
         march<>
     );
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// [`strat_avx512`] fetching by scalar loads.
         ///
@@ -118,6 +128,18 @@ mod vector {
         pub(in crate::render::packet) strat_avx512_loads,
         "avx2,fma,avx512f",
         W16<true>,
+        march<>
+    );
+    #[cfg(target_arch = "aarch64")]
+    entry!(
+        /// [`strat_avx2`] in four lanes of NEON registers (AArch64).
+        ///
+        /// # Safety
+        /// The grid `fits`; the shading `shades`; `pk.z_pairs` is the
+        /// grid's z-paired copy; `pk.strat` is set.
+        pub(in crate::render::packet) strat_neon,
+        "neon",
+        W4,
         march<>
     );
 

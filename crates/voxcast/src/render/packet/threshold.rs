@@ -11,8 +11,12 @@
 //! slot that gathers the weights of the samples reusing it, so a group is
 //! shaded once.
 
-#[cfg(target_arch = "x86_64")]
-pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512, thr_avx512_loads, ByLeaf, ByRange};
+#[cfg(all(packets, target_arch = "aarch64"))]
+pub(super) use vector::thr_neon;
+#[cfg(all(packets, target_arch = "x86_64"))]
+pub(super) use vector::{thr_avx2, thr_avx2_loads, thr_avx512, thr_avx512_loads};
+#[cfg(packets)]
+pub(super) use vector::{ByLeaf, ByRange};
 
 use super::{Lane, Packets, Runs, Setup};
 use crate::render::march::ThresholdParams;
@@ -96,12 +100,16 @@ impl<T: Voxel, R: Runs<T>> Packets<'_, T, R> {
     }
 }
 
-/// The vector loop (x86-64 only, as the packets).
-#[cfg(target_arch = "x86_64")]
+/// The vector loop (where the packets are compiled: x86-64, AArch64).
+#[cfg(packets)]
 mod vector {
     use super::super::fetch::{Skips, Vol};
     use super::super::shade::{Deferred, Light, Slots};
-    use super::super::simd::{Simd, W16, W8};
+    use super::super::simd::Simd;
+    #[cfg(target_arch = "aarch64")]
+    use super::super::simd::W4;
+    #[cfg(target_arch = "x86_64")]
+    use super::super::simd::{W16, W8};
     use super::super::tail::{composite, drain_deferred, over_stretch, store_lanes};
     use super::super::vector::{queue_slots, shade_batch};
     use super::super::vwalk::{last_blocks, Rays};
@@ -111,6 +119,7 @@ mod vector {
     use crate::transfer::LUT_SIZE;
     use crate::volume::Voxel;
 
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// The `threshold` lanes' loop at AVX2: two packets of eight,
         /// fetching by the gather instructions.
@@ -123,6 +132,7 @@ mod vector {
         W8<false>,
         march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// [`thr_avx2`] fetching by scalar loads.
         ///
@@ -133,6 +143,7 @@ mod vector {
         W8<true>,
         march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// [`thr_avx2`] in sixteen lanes of AVX-512 registers.
         ///
@@ -143,6 +154,7 @@ mod vector {
         W16<false>,
         march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
+    #[cfg(target_arch = "x86_64")]
     entry!(
         /// [`thr_avx512`] fetching by scalar loads.
         ///
@@ -151,6 +163,18 @@ mod vector {
         pub(in crate::render::packet) thr_avx512_loads,
         "avx2,fma,avx512f",
         W16<true>,
+        march<[P: Chooser] SKIP, SHADE, GROUPED>
+    );
+    #[cfg(target_arch = "aarch64")]
+    entry!(
+        /// [`thr_avx2`] in four lanes of NEON registers (AArch64).
+        ///
+        /// # Safety
+        /// The grid `fits`; the shading `shades`; `pk.z_pairs` is the
+        /// grid's z-paired copy; `pk.thr` is set.
+        pub(in crate::render::packet) thr_neon,
+        "neon",
+        W4,
         march<[P: Chooser] SKIP, SHADE, GROUPED>
     );
 

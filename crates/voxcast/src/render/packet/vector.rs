@@ -6,7 +6,11 @@
 use super::fetch::{Skips, Vol};
 use super::importance::{ImpState, VImp};
 use super::shade::{Batch, Deferred, Light, Slots};
-use super::simd::{Simd, W16, W8};
+use super::simd::Simd;
+#[cfg(target_arch = "aarch64")]
+use super::simd::W4;
+#[cfg(target_arch = "x86_64")]
+use super::simd::{W16, W8};
 use super::tail::{composite, drain_deferred, over_stretch, store_lanes};
 use super::vwalk::{Rays, VWalk};
 use super::walk::{walk_runs, RunRegs};
@@ -55,6 +59,7 @@ pub(super) unsafe fn queue_slots<S: Simd, T: Voxel>(
     }
 }
 
+#[cfg(target_arch = "x86_64")]
 entry!(
     /// Marches the lanes' vector stretches `k0..k_end`: adds each lane's
     /// colour and opacity to `st.acc`, its samples, shaded samples and
@@ -74,6 +79,7 @@ entry!(
     W8<false>,
     march<SKIP, SHADE, IMP, GROUPED>
 );
+#[cfg(target_arch = "x86_64")]
 entry!(
     /// [`march_avx2`] fetching by scalar loads ([`W8`]`<true>`).
     ///
@@ -84,6 +90,7 @@ entry!(
     W8<true>,
     march<SKIP, SHADE, IMP, GROUPED>
 );
+#[cfg(target_arch = "x86_64")]
 entry!(
     /// [`march_avx2`] in sixteen lanes of AVX-512 registers, lane masks in
     /// mask registers.
@@ -95,6 +102,7 @@ entry!(
     W16<false>,
     march<SKIP, SHADE, IMP, GROUPED>
 );
+#[cfg(target_arch = "x86_64")]
 entry!(
     /// [`march_avx512`] fetching by scalar loads ([`W16`]`<true>`).
     ///
@@ -103,6 +111,19 @@ entry!(
     pub(super) march_avx512_loads,
     "avx2,fma,avx512f",
     W16<true>,
+    march<SKIP, SHADE, IMP, GROUPED>
+);
+#[cfg(target_arch = "aarch64")]
+entry!(
+    /// [`march_avx2`] in four lanes of NEON registers (AArch64), the
+    /// sixteen lanes as four packets, fetching by scalar loads.
+    ///
+    /// # Safety
+    /// The grid `fits`; the shading `shades`; `pk.z_pairs` is the grid's
+    /// z-paired copy (`ZPairs::of`).
+    pub(super) march_neon,
+    "neon",
+    W4,
     march<SKIP, SHADE, IMP, GROUPED>
 );
 

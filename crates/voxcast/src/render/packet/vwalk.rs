@@ -19,31 +19,9 @@
 
 use super::simd::Simd;
 use super::walk::RunRegs;
-use super::{Packets, Runs, State, WalkStart, LANES};
+use super::{Packets, Runs, State, VParams, WalkStart, LANES};
 use crate::render::march::{exp2i, VRule};
 use crate::volume::Voxel;
-
-/// What the vector walk reads of a step-per-block march.
-#[derive(Clone, Copy)]
-pub(in crate::render) struct VParams<'a> {
-    pub rule: VRule<'a>,
-    /// The levels `lo..=hi` and their steps (world units).
-    pub lo: i32,
-    pub hi: i32,
-    pub steps: &'a [f32],
-    pub k_ref: f32,
-    /// Per block, the rule's `k` (0 for [`VRule::Fixed`]), or −1 where
-    /// the block is empty under the transfer function: one gather per
-    /// block.
-    pub k: &'a [f32],
-    /// Skipping empty blocks.
-    pub skip_empty: bool,
-    /// Runs keep S0's groups (grouped reuse): blocks merge only where
-    /// they share their group cap ([`Sampler::GROUPS`]).
-    ///
-    /// [`Sampler::GROUPS`]: crate::render::ray::Sampler::GROUPS
-    pub groups: bool,
-}
 
 /// The lanes' 3D DDA over the block grid in vector registers
 /// ([`BlockWalker::next`] operation for operation, in its `staying`
