@@ -101,6 +101,18 @@ impl<S: Simd> VBlocks<S> {
         }
     }
 
+    /// The index of the block each lane of `m` stands in, the one its
+    /// next [`VBlocks::step`] returns (always inside the grid: a walk
+    /// past it stays in the edge block); 0 in the other lanes.
+    ///
+    /// # Safety
+    /// The width's instructions.
+    #[inline(always)]
+    pub unsafe fn current(&self, m: S::M) -> S::I {
+        let [bx, by, bz] = self.blk;
+        S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)))
+    }
+
     /// One block for each lane of `m` (lanes whose walk is not over, `t <
     /// t_out`): where the lane enters and leaves it, its index and its
     /// place on each axis; the lanes move on to their next block.
@@ -117,7 +129,7 @@ impl<S: Simd> VBlocks<S> {
         let ta = self.t;
         let tb = S::max(S::min(tsel, self.t_out), ta);
         let [bx, by, bz] = self.blk;
-        let b = S::keep_i(m, bx + S::mullo(self.ncx, by + S::mullo(self.ncy, bz)));
+        let b = self.current(m);
         self.t = S::blend(m, self.t, tb);
         // Each lane moves on one axis: that axis's block, direction,
         // bounds and plane, picked lane by lane, and one crossing.
@@ -446,6 +458,12 @@ impl<'a, S: Simd> VWalk<'a, S> {
         }
         let (mut found, mut fin) = (none, none);
         let mut out: Run<S> = self.rdy;
+        // Each lane's `k` is gathered a block ahead: the next block's
+        // gather starts as soon as the lanes have stepped, so its latency
+        // overlaps this block's rule instead of lengthening the chain from
+        // block to block (a lane of `m` now was in `m` then, and has not
+        // moved since).
+        let mut k_next = S::gather_f::<4>(self.p.k.as_ptr(), self.w.current(m));
         loop {
             // Walks that are over hand out their current run, or finish.
             let over = S::and(m, S::or(self.ended, S::ge(self.w.t, self.w.t_out)));
@@ -464,7 +482,9 @@ impl<'a, S: Simd> VWalk<'a, S> {
                 break;
             }
             // One block per lane (`BlockWalker::next`).
-            let (ta, tb, b, _) = self.w.step(m);
+            let (ta, tb, _, _) = self.w.step(m);
+            let k = k_next;
+            k_next = S::gather_f::<4>(self.p.k.as_ptr(), self.w.current(m));
             let (qa, qb) = (self.q, (tb - self.t0) / self.s0);
             self.q = S::blend(m, self.q, qb);
             // Past the walk's end with no run: over.
@@ -472,7 +492,6 @@ impl<'a, S: Simd> VWalk<'a, S> {
             self.ended = S::or(self.ended, stop);
             fin = S::or(fin, stop);
             m = S::but(m, stop);
-            let k = S::gather_f::<4>(self.p.k.as_ptr(), b);
             let e = S::lt(k, zero);
             let skip = if self.p.skip_empty { e } else { none };
             // A skipped block with no run before it changes nothing.
