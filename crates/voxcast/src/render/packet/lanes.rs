@@ -357,103 +357,6 @@ unsafe fn set_up_runs<S: Simd>(
     hits
 }
 
-/// [`set_up_runs`] in AVX2 registers, eight lanes at a time.
-///
-/// # Safety
-/// AVX2 and FMA present.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn set_up_runs_avx2(
-    g: &Geometry,
-    rays: &[(Vec3, Vec3)],
-    jit: &[f32; LANES],
-    limit: &[f32; LANES],
-    lanes: &mut [Option<Lane>; LANES],
-    starts: &mut [Option<WalkStart>; LANES],
-) -> u64 {
-    set_up_runs::<W8<false>>(g, rays, jit, limit, lanes, starts)
-}
-
-/// [`set_up_runs`] in AVX-512 registers, sixteen lanes at once.
-///
-/// # Safety
-/// AVX2, FMA and AVX-512 F present.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,avx512f")]
-pub(super) unsafe fn set_up_runs_avx512(
-    g: &Geometry,
-    rays: &[(Vec3, Vec3)],
-    jit: &[f32; LANES],
-    limit: &[f32; LANES],
-    lanes: &mut [Option<Lane>; LANES],
-    starts: &mut [Option<WalkStart>; LANES],
-) -> u64 {
-    set_up_runs::<W16<false>>(g, rays, jit, limit, lanes, starts)
-}
-
-/// [`set_up`] in AVX2 registers, eight lanes at a time.
-///
-/// # Safety
-/// AVX2 and FMA present.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn set_up_avx2(
-    g: &Geometry,
-    rays: &[(Vec3, Vec3)],
-    jit: &[f32; LANES],
-    limit: &[f32; LANES],
-    lanes: &mut [Option<Lane>; LANES],
-) -> u64 {
-    set_up::<W8<false>>(g, rays, jit, limit, lanes)
-}
-
-/// [`set_up`] in AVX-512 registers, sixteen lanes at once.
-///
-/// # Safety
-/// AVX2, FMA and AVX-512 F present.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,avx512f")]
-pub(super) unsafe fn set_up_avx512(
-    g: &Geometry,
-    rays: &[(Vec3, Vec3)],
-    jit: &[f32; LANES],
-    limit: &[f32; LANES],
-    lanes: &mut [Option<Lane>; LANES],
-) -> u64 {
-    set_up::<W16<false>>(g, rays, jit, limit, lanes)
-}
-
-/// [`set_up_runs`] in NEON registers (AArch64), four lanes at a time.
-///
-/// # Safety
-/// None beyond the packets' (NEON is part of AArch64).
-#[cfg(target_arch = "aarch64")]
-pub(super) unsafe fn set_up_runs_neon(
-    g: &Geometry,
-    rays: &[(Vec3, Vec3)],
-    jit: &[f32; LANES],
-    limit: &[f32; LANES],
-    lanes: &mut [Option<Lane>; LANES],
-    starts: &mut [Option<WalkStart>; LANES],
-) -> u64 {
-    set_up_runs::<W4>(g, rays, jit, limit, lanes, starts)
-}
-
-/// [`set_up`] in NEON registers (AArch64), four lanes at a time.
-///
-/// # Safety
-/// None beyond the packets' (NEON is part of AArch64).
-#[cfg(target_arch = "aarch64")]
-pub(super) unsafe fn set_up_neon(
-    g: &Geometry,
-    rays: &[(Vec3, Vec3)],
-    jit: &[f32; LANES],
-    limit: &[f32; LANES],
-    lanes: &mut [Option<Lane>; LANES],
-) -> u64 {
-    set_up::<W4>(g, rays, jit, limit, lanes)
-}
-
 /// [`Camera::ray`] for each pixel of `pixels` into `rays` (as many),
 /// `S::N` at a time: its operations in its order — multiplications,
 /// additions, divisions and the square root round the same in a lane as
@@ -507,46 +410,85 @@ unsafe fn camera_rays<S: Simd>(c: &Camera, pixels: &[(u32, u32)], rays: &mut [(V
     }
 }
 
-/// [`camera_rays`] in AVX2 registers, eight rays at a time.
-///
-/// # Safety
-/// AVX2 and FMA present.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-pub(super) unsafe fn camera_rays_avx2(
-    c: &Camera,
-    pixels: &[(u32, u32)],
-    rays: &mut [(Vec3, Vec3)],
-) {
-    camera_rays::<W8<false>>(c, pixels, rays)
+/// [`set_up`], [`set_up_runs`] and [`camera_rays`] compiled for one
+/// width's instructions, under the names `$set_up`, `$set_up_runs` and
+/// `$camera_rays`.
+macro_rules! at_width {
+    ($arch:literal, $features:literal, $w:ty, $set_up:ident, $set_up_runs:ident, $camera_rays:ident) => {
+        #[doc = concat!("[`set_up`] at `", stringify!($w), "`.")]
+        ///
+        /// # Safety
+        /// The CPU has the width's instructions.
+        #[cfg(target_arch = $arch)]
+        #[target_feature(enable = $features)]
+        pub(super) unsafe fn $set_up(
+            g: &Geometry,
+            rays: &[(Vec3, Vec3)],
+            jit: &[f32; LANES],
+            limit: &[f32; LANES],
+            lanes: &mut [Option<Lane>; LANES],
+        ) -> u64 {
+            set_up::<$w>(g, rays, jit, limit, lanes)
+        }
+
+        #[doc = concat!("[`set_up_runs`] at `", stringify!($w), "`.")]
+        ///
+        /// # Safety
+        /// The CPU has the width's instructions.
+        #[cfg(target_arch = $arch)]
+        #[target_feature(enable = $features)]
+        pub(super) unsafe fn $set_up_runs(
+            g: &Geometry,
+            rays: &[(Vec3, Vec3)],
+            jit: &[f32; LANES],
+            limit: &[f32; LANES],
+            lanes: &mut [Option<Lane>; LANES],
+            starts: &mut [Option<WalkStart>; LANES],
+        ) -> u64 {
+            set_up_runs::<$w>(g, rays, jit, limit, lanes, starts)
+        }
+
+        #[doc = concat!("[`camera_rays`] at `", stringify!($w), "`.")]
+        ///
+        /// # Safety
+        /// The CPU has the width's instructions.
+        #[cfg(target_arch = $arch)]
+        #[target_feature(enable = $features)]
+        pub(super) unsafe fn $camera_rays(
+            c: &Camera,
+            pixels: &[(u32, u32)],
+            rays: &mut [(Vec3, Vec3)],
+        ) {
+            camera_rays::<$w>(c, pixels, rays)
+        }
+    };
 }
 
-/// [`camera_rays`] in AVX-512 registers, sixteen rays at once.
-///
-/// # Safety
-/// AVX2, FMA and AVX-512 F present.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma,avx512f")]
-pub(super) unsafe fn camera_rays_avx512(
-    c: &Camera,
-    pixels: &[(u32, u32)],
-    rays: &mut [(Vec3, Vec3)],
-) {
-    camera_rays::<W16<false>>(c, pixels, rays)
-}
-
-/// [`camera_rays`] in NEON registers (AArch64), four rays at a time.
-///
-/// # Safety
-/// None beyond the packets' (NEON is part of AArch64).
-#[cfg(target_arch = "aarch64")]
-pub(super) unsafe fn camera_rays_neon(
-    c: &Camera,
-    pixels: &[(u32, u32)],
-    rays: &mut [(Vec3, Vec3)],
-) {
-    camera_rays::<W4>(c, pixels, rays)
-}
+// AVX2 (eight lanes at a time), AVX-512 (sixteen at once), NEON (four).
+at_width!(
+    "x86_64",
+    "avx2,fma",
+    W8<false>,
+    set_up_avx2,
+    set_up_runs_avx2,
+    camera_rays_avx2
+);
+at_width!(
+    "x86_64",
+    "avx2,fma,avx512f",
+    W16<false>,
+    set_up_avx512,
+    set_up_runs_avx512,
+    camera_rays_avx512
+);
+at_width!(
+    "aarch64",
+    "neon",
+    W4,
+    set_up_neon,
+    set_up_runs_neon,
+    camera_rays_neon
+);
 
 #[cfg(test)]
 mod tests {

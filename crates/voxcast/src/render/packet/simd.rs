@@ -139,6 +139,21 @@ pub(super) struct W16<const LOADS: bool>;
 #[derive(Clone, Copy)]
 pub(super) struct W4;
 
+/// `impl $tr for $t` (an operator of a width's vector newtype) by the
+/// intrinsic `$i`, for the width files below; each says why its
+/// intrinsics are safe to call there.
+macro_rules! op {
+    ($t:ident, $tr:ident, $f:ident, $i:ident) => {
+        impl std::ops::$tr for $t {
+            type Output = $t;
+            #[inline(always)]
+            fn $f(self, o: $t) -> $t {
+                unsafe { $t($i(self.0, o.0)) }
+            }
+        }
+    };
+}
+
 #[cfg(target_arch = "x86_64")]
 mod w16;
 #[cfg(target_arch = "aarch64")]

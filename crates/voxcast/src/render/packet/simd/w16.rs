@@ -15,17 +15,6 @@ pub(in crate::render::packet) struct I16(pub __m512i);
 
 // SAFETY (every `unsafe` block of this file): these values exist only
 // inside functions compiled for AVX-512 F (see the parent module).
-macro_rules! op {
-    ($t:ident, $tr:ident, $f:ident, $i:ident) => {
-        impl std::ops::$tr for $t {
-            type Output = $t;
-            #[inline(always)]
-            fn $f(self, o: $t) -> $t {
-                unsafe { $t($i(self.0, o.0)) }
-            }
-        }
-    };
-}
 op!(F16, Add, add, _mm512_add_ps);
 op!(F16, Sub, sub, _mm512_sub_ps);
 op!(F16, Mul, mul, _mm512_mul_ps);

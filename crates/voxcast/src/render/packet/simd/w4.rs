@@ -18,17 +18,6 @@ pub(in crate::render::packet) struct I4(pub int32x4_t);
 
 // SAFETY (every `unsafe` block of this file): NEON is part of AArch64
 // (every AArch64 target has it enabled).
-macro_rules! op {
-    ($t:ident, $tr:ident, $f:ident, $i:ident) => {
-        impl std::ops::$tr for $t {
-            type Output = $t;
-            #[inline(always)]
-            fn $f(self, o: $t) -> $t {
-                unsafe { $t($i(self.0, o.0)) }
-            }
-        }
-    };
-}
 op!(F4, Add, add, vaddq_f32);
 op!(F4, Sub, sub, vsubq_f32);
 op!(F4, Mul, mul, vmulq_f32);

@@ -15,17 +15,6 @@ pub(in crate::render::packet) struct I8(pub __m256i);
 
 // SAFETY (every `unsafe` block of this file): these values exist only
 // inside functions compiled for AVX2 (see the parent module).
-macro_rules! op {
-    ($t:ident, $tr:ident, $f:ident, $i:ident) => {
-        impl std::ops::$tr for $t {
-            type Output = $t;
-            #[inline(always)]
-            fn $f(self, o: $t) -> $t {
-                unsafe { $t($i(self.0, o.0)) }
-            }
-        }
-    };
-}
 op!(F8, Add, add, _mm256_add_ps);
 op!(F8, Sub, sub, _mm256_sub_ps);
 op!(F8, Mul, mul, _mm256_mul_ps);
